@@ -1,0 +1,2 @@
+//! lssi core (placeholder).
+#![no_std]

@@ -1,0 +1,2 @@
+//! The lssi wire format (placeholder).
+#![no_std]

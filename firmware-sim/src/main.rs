@@ -1,0 +1,2 @@
+//! firmware-sim (placeholder until the replay work lands).
+fn main() {}

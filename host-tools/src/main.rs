@@ -1,0 +1,2 @@
+//! The `lssi` command (placeholder).
+fn main() {}

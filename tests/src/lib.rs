@@ -1,0 +1,1 @@
+//! End-to-end tests across the lssi crates; the tests live in `tests/tests/`.
