@@ -1,2 +1,28 @@
-//! lssi core (placeholder).
-#![no_std]
+//! # lssi-core — streaming local sparse screening identification
+//!
+//! Recovers a vibration energy harvester's equation of motion x'' = f(x, x', t) from its
+//! displacement signal, sample by sample, in fixed memory, with no allocator: the LSSI
+//! algorithm (Li, Wang & Wang 2020) made streaming. See [`Identifier`] for the pipeline and
+//! a runnable example, and DESIGN.md for the decisions the paper leaves open.
+//!
+//! `#![no_std]`, no `alloc`, no panics on data: a bad sample is a counted [`Rejection`].
+//! Generic over [`Real`] (`f32` on a device, `f64` as the host's reference); every
+//! transcendental function goes through `libm`.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![deny(missing_docs)]
+
+pub mod config;
+pub mod derivative;
+pub mod factor;
+pub mod identifier;
+pub mod library;
+pub mod model;
+pub mod real;
+mod screen;
+pub mod smoothing;
+
+pub use config::{Channels, Config, ConfigError};
+pub use identifier::{Counters, Identifier, Rejection, Sample};
+pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, Term};
+pub use model::{MAX_SOLUTIONS, Model, Solution};
+pub use real::Real;

@@ -1,0 +1,180 @@
+//! Tunables of the identifier, validated once when it is built (state lives apart, in
+//! [`crate::Identifier`]).
+
+use crate::library::LibraryConfig;
+use core::fmt;
+
+/// Which measured channels a sample carries besides t and x.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Channels {
+    /// A measured velocity v = x' (used instead of differentiating x).
+    pub velocity: bool,
+    /// A measured excitation u.
+    pub input: bool,
+}
+
+/// The identifier's configuration. `Config::default()` is the one default configuration
+/// used for every benchmark row; only the sample period, Ω and the library differ between
+/// recordings, and those describe the recording, not the method.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Config {
+    /// Nominal sample period, seconds.
+    pub sample_period: f64,
+    /// Samples in the local polynomial (derivative) window; the estimates lag by half of it.
+    pub window: usize,
+    /// Degree of the local polynomial.
+    pub derivative_degree: u8,
+    /// The candidate terms.
+    pub library: LibraryConfig,
+    /// Base angular frequency Ω of the sin/cos terms, rad/s (ignored without harmonics).
+    pub omega: f64,
+    /// Measured channels besides x.
+    pub channels: Channels,
+    /// Memory time constant of the forgetting, seconds (`None`: remember everything).
+    pub memory: Option<f64>,
+    /// Samples between two screenings (threshold sweep + MES).
+    pub screening_period: u32,
+    /// Points of the logarithmic threshold grid added to the data's own thresholds.
+    pub thresholds: u8,
+    /// k-neighbour smoothing of x and v (off only for the ablation).
+    pub smoothing: bool,
+    /// One regression row every `row_stride` samples (the rows of a smoothed signal a few
+    /// samples apart carry the same information).
+    pub row_stride: u16,
+    /// MES parsimony: the sparsest solution whose held-out mean error is within this
+    /// fraction of the least one is chosen.
+    pub parsimony: f64,
+    /// Estimate and remove the sensor offsets of x and v (DESIGN.md, "Sensor offsets").
+    pub offsets: bool,
+    /// A sample whose |x|, |v| or |u| exceeds this is absurd and rejected.
+    pub max_abs: f64,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            sample_period: 1e-3,
+            window: 255,
+            derivative_degree: 5,
+            library: LibraryConfig::default(),
+            omega: 1.0,
+            channels: Channels::default(),
+            memory: None,
+            screening_period: 10_000,
+            thresholds: 24,
+            smoothing: true,
+            row_stride: 4,
+            parsimony: 0.05,
+            offsets: true,
+            max_abs: 1e9,
+        }
+    }
+}
+
+/// A configuration field that is out of range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// `sample_period` is not positive and finite.
+    SamplePeriod(f64),
+    /// `window` does not fit the capacity or the degree.
+    Window {
+        /// Requested.
+        window: usize,
+        /// Smallest allowed.
+        min: usize,
+        /// Largest allowed (the buffer capacity).
+        max: usize,
+    },
+    /// `derivative_degree` is out of range.
+    DerivativeDegree(u8),
+    /// The library cannot be built.
+    Library(crate::library::LibraryError),
+    /// `omega` must be positive and finite when there are harmonics.
+    Omega(f64),
+    /// `memory` must be positive (seconds) when given.
+    Memory(f64),
+    /// `screening_period` is zero.
+    ScreeningPeriod,
+    /// `row_stride` is zero.
+    RowStride,
+    /// `parsimony` is negative or not finite.
+    Parsimony(f64),
+    /// `max_abs` is not positive.
+    MaxAbs(f64),
+    /// The library asks for the input u, but the channels have none.
+    InputWithoutChannel,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::SamplePeriod(v) => write!(f, "sample_period is {v}, but it must be a positive number of seconds"),
+            ConfigError::Window { window, min, max } => {
+                write!(f, "window is {window} samples, but it must be between {min} and {max}")
+            }
+            ConfigError::DerivativeDegree(d) => write!(f, "derivative_degree is {d}, but it must be between 2 and 8"),
+            ConfigError::Library(e) => fmt::Display::fmt(e, f),
+            ConfigError::Omega(v) => write!(f, "omega is {v}, but the sin/cos terms need a positive frequency in rad/s"),
+            ConfigError::Memory(v) => write!(f, "memory is {v}, but it must be a positive time constant in seconds"),
+            ConfigError::ScreeningPeriod => f.write_str("screening_period must be at least 1 sample"),
+            ConfigError::RowStride => f.write_str("row_stride must be at least 1"),
+            ConfigError::Parsimony(v) => write!(f, "parsimony is {v}, but it must be a fraction between 0 and 1"),
+            ConfigError::MaxAbs(v) => write!(f, "max_abs is {v}, but it must be positive"),
+            ConfigError::InputWithoutChannel => {
+                f.write_str("library.input asks for the excitation u, but channels.input says the samples carry none")
+            }
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+impl From<crate::library::LibraryError> for ConfigError {
+    fn from(e: crate::library::LibraryError) -> Self {
+        ConfigError::Library(e)
+    }
+}
+
+impl Config {
+    /// Checks every field against the capacities `W` (window) and `P` (terms).
+    pub fn validate<const W: usize, const P: usize>(&self) -> Result<(), ConfigError> {
+        if !(self.sample_period.is_finite() && self.sample_period > 0.0) {
+            return Err(ConfigError::SamplePeriod(self.sample_period));
+        }
+        if !(2..=crate::derivative::MAX_DEGREE as u8).contains(&self.derivative_degree) {
+            return Err(ConfigError::DerivativeDegree(self.derivative_degree));
+        }
+        let min = usize::from(self.derivative_degree) + 3;
+        if self.window < min || self.window > W {
+            return Err(ConfigError::Window { window: self.window, min, max: W });
+        }
+        crate::library::Library::<P>::new(&self.library)?;
+        if self.library.harmonics > 0 && !(self.omega.is_finite() && self.omega > 0.0) {
+            return Err(ConfigError::Omega(self.omega));
+        }
+        if let Some(m) = self.memory {
+            if !(m > 0.0) {
+                return Err(ConfigError::Memory(m));
+            }
+        }
+        if self.screening_period == 0 {
+            return Err(ConfigError::ScreeningPeriod);
+        }
+        if self.row_stride == 0 {
+            return Err(ConfigError::RowStride);
+        }
+        if !(self.parsimony.is_finite() && (0.0..1.0).contains(&self.parsimony)) {
+            return Err(ConfigError::Parsimony(self.parsimony));
+        }
+        if !(self.max_abs > 0.0) {
+            return Err(ConfigError::MaxAbs(self.max_abs));
+        }
+        if self.library.input && !self.channels.input {
+            return Err(ConfigError::InputWithoutChannel);
+        }
+        Ok(())
+    }
+}

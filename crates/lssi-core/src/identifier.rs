@@ -1,0 +1,626 @@
+//! The streaming identifier: one sample in, now and then a model out.
+//!
+//! A sample's way through it (DESIGN.md): ring buffer → fixed-lag local polynomial estimates
+//! of x, x', x'' → k-neighbour smoothing of x and x' → library row θ(x, x', t [, u]) scaled to
+//! unit size → square-root RLS update (into one of two interleaved factors) → every
+//! `screening_period` samples: sensor offsets, threshold sweep, MES → [`Model`].
+//!
+//! ```
+//! use lssi_core::{Config, Identifier, Sample};
+//! let config = Config { sample_period: 0.01, window: 63, omega: 1.0, screening_period: 2000,
+//!                       ..Config::default() };
+//! let mut id: Identifier<f32, 128, 16> = Identifier::new(config).unwrap();
+//! // x'' = -4x - 0.2x' + 3cos(t): a forced linear oscillator, integrated by semi-implicit Euler.
+//! let (mut x, mut v, dt) = (0.0f64, 0.0f64, 0.0001f64);
+//! for i in 0..2_000_000u32 {
+//!     let t = f64::from(i) * dt;
+//!     if i % 100 == 0 {
+//!         id.push(Sample { t, x: x as f32, v: None, u: None }).unwrap();
+//!     }
+//!     v += dt * (-4.0 * x - 0.2 * v + 3.0 * t.cos());
+//!     x += dt * v;
+//! }
+//! id.screen();
+//! let model = id.model().unwrap();
+//! let k = model.coefficient(lssi_core::Term::Monomial { px: 1, pv: 0 }).unwrap();
+//! assert!((k + 4.0).abs() < 0.05, "{k}");
+//! ```
+
+use crate::config::Config;
+use crate::derivative::Taps;
+use crate::factor::Factor;
+use crate::library::{Library, Term};
+use crate::model::{MAX_SOLUTIONS, Model, Solution};
+use crate::real::Real;
+use crate::screen;
+use crate::smoothing::KnnSmoother;
+use heapless::HistoryBuf;
+
+/// Regression rows kept before the column scales are known.
+const WARMUP_ROWS: usize = 64;
+/// Rows of the delay line that keeps x'', u and t in step with the smoothed x and v.
+const DELAY: usize = KnnSmoother::<f32>::LAG + 1;
+/// The excitation gate closes when the recent RMS velocity falls below this fraction of the
+/// long-run RMS velocity: the factor then neither learns nor forgets.
+const GATE: f64 = 0.01;
+
+/// One measurement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sample<T> {
+    /// Time, seconds (f64: a device runs for days).
+    pub t: f64,
+    /// Displacement.
+    pub x: T,
+    /// Measured velocity, when the configuration says there is one.
+    pub v: Option<T>,
+    /// Measured excitation, when the configuration says there is one.
+    pub u: Option<T>,
+}
+
+/// Why a sample was not fed in. Each is counted in [`Counters`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Rejection {
+    /// A value (or the time) is NaN or infinite.
+    NonFinite,
+    /// A value's magnitude exceeds `max_abs`.
+    OutOfRange,
+    /// The time is not later than the previous sample's (by at least half a period).
+    OutOfOrder,
+    /// A channel the configuration declares is missing (or one it does not declare is present).
+    Channels,
+}
+
+impl core::fmt::Display for Rejection {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Rejection::NonFinite => "the sample has a NaN or infinite value",
+            Rejection::OutOfRange => "the sample's magnitude exceeds max_abs",
+            Rejection::OutOfOrder => "the sample's time is not after the previous sample's",
+            Rejection::Channels => "the sample's channels differ from the configured ones",
+        })
+    }
+}
+
+impl core::error::Error for Rejection {}
+
+/// What happened to the samples so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Counters {
+    /// Samples fed in.
+    pub accepted: u64,
+    /// Rejected: non-finite.
+    pub non_finite: u64,
+    /// Rejected: beyond `max_abs`.
+    pub out_of_range: u64,
+    /// Rejected: time not increasing.
+    pub out_of_order: u64,
+    /// Rejected: wrong channels.
+    pub channels: u64,
+    /// Gaps in time (more than 1.5 periods) after which the window restarted.
+    pub gaps: u64,
+    /// Regression rows folded into the factors.
+    pub rows: u64,
+    /// Rows held back by the excitation gate.
+    pub gated: u64,
+    /// Screenings run.
+    pub screenings: u64,
+}
+
+impl Counters {
+    /// All rejected samples.
+    pub fn rejected(&self) -> u64 {
+        self.non_finite + self.out_of_range + self.out_of_order + self.channels
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Row<T> {
+    x: T,
+    v: T,
+    y: T,
+    u: T,
+    t: f64,
+}
+
+/// The streaming LSSI identifier: `W` samples of window capacity, `P` library terms.
+pub struct Identifier<T: Real, const W: usize, const P: usize> {
+    config: Config,
+    library: Library<P>,
+    taps: Taps<T, W>,
+    x: HistoryBuf<T, W>,
+    v: HistoryBuf<T, W>,
+    u: HistoryBuf<T, W>,
+    last_t: Option<f64>,
+    since_row: u16,
+    smooth_x: KnnSmoother<T>,
+    smooth_v: KnnSmoother<T>,
+    delay: [(T, T, f64); DELAY],
+    delay_len: usize,
+    delay_head: usize,
+    inverse_scales: [T; P],
+    scales: [T; P],
+    y_scale: T,
+    warmup: heapless::Vec<Row<T>, WARMUP_ROWS>,
+    a: Factor<T, P>,
+    b: Factor<T, P>,
+    block: Factor<T, P>,
+    block_len: u64,
+    sqrt_lambda: T,
+    sqrt_lambda_blocks: T,
+    short_v2: T,
+    long_v2: T,
+    long_weight: T,
+    short_alpha: T,
+    x_min: T,
+    x_max: T,
+    dv_sum: T,
+    dv_weight: T,
+    counters: Counters,
+    since_screen: u32,
+    model: Option<Model<T, P>>,
+}
+
+impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
+    /// Builds an identifier, checking the configuration once.
+    pub fn new(config: Config) -> Result<Self, crate::ConfigError> {
+        config.validate::<W, P>()?;
+        let library = Library::new(&config.library)?;
+        let taps = Taps::design(config.window, usize::from(config.derivative_degree), config.sample_period)
+            .map_err(|_| crate::ConfigError::Window { window: config.window, min: 0, max: W })?;
+        let n = library.len();
+        let stride = usize::from(config.row_stride);
+        let block_len = (2 * config.window / stride).max(16) as u64;
+        let row_period = config.sample_period * f64::from(config.row_stride);
+        let lambda = config.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
+        Ok(Self {
+            config,
+            library,
+            taps,
+            x: HistoryBuf::new(),
+            v: HistoryBuf::new(),
+            u: HistoryBuf::new(),
+            last_t: None,
+            since_row: 0,
+            smooth_x: KnnSmoother::new(),
+            smooth_v: KnnSmoother::new(),
+            delay: [(T::ZERO, T::ZERO, 0.0); DELAY],
+            delay_len: 0,
+            delay_head: 0,
+            inverse_scales: [T::ONE; P],
+            scales: [T::ONE; P],
+            y_scale: T::ONE,
+            warmup: heapless::Vec::new(),
+            a: Factor::new(n),
+            b: Factor::new(n),
+            block: Factor::new(n),
+            block_len,
+            sqrt_lambda: T::from_f64(libm::sqrt(lambda)),
+            sqrt_lambda_blocks: T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * block_len as f64)),
+            short_v2: T::ZERO,
+            long_v2: T::ZERO,
+            long_weight: T::ZERO,
+            short_alpha: T::ONE / T::from_usize(block_len as usize),
+            x_min: T::MAX,
+            x_max: -T::MAX,
+            dv_sum: T::ZERO,
+            dv_weight: T::ZERO,
+            counters: Counters::default(),
+            since_screen: 0,
+            model: None,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The library.
+    pub fn library(&self) -> &Library<P> {
+        &self.library
+    }
+
+    /// What happened to the samples so far.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// The latest model, once a screening has run.
+    pub fn model(&self) -> Option<&Model<T, P>> {
+        self.model.as_ref()
+    }
+
+    /// Samples in the derivative window (fill level of the ring buffer).
+    pub fn buffered(&self) -> usize {
+        self.x.len().min(self.config.window)
+    }
+
+    /// Samples between a sample arriving and its regression row (the fixed lag).
+    pub fn lag_samples(&self) -> usize {
+        let smoothing = if self.config.smoothing { KnnSmoother::<T>::LAG * usize::from(self.config.row_stride) } else { 0 };
+        (self.config.window - 1) / 2 + smoothing
+    }
+
+    /// Feeds one sample. Returns `Ok(true)` when a screening just ran (a new model is in
+    /// [`Identifier::model`]), `Ok(false)` otherwise, and `Err` (counted) for a sample that
+    /// was not fed in.
+    pub fn push(&mut self, sample: Sample<T>) -> Result<bool, Rejection> {
+        if let Err(r) = self.check(&sample) {
+            match r {
+                Rejection::NonFinite => self.counters.non_finite += 1,
+                Rejection::OutOfRange => self.counters.out_of_range += 1,
+                Rejection::OutOfOrder => self.counters.out_of_order += 1,
+                Rejection::Channels => self.counters.channels += 1,
+            }
+            return Err(r);
+        }
+        let dt = self.config.sample_period;
+        if let Some(last) = self.last_t {
+            if sample.t - last > 1.5 * dt {
+                self.restart();
+                self.counters.gaps += 1;
+            }
+        }
+        self.last_t = Some(sample.t);
+        self.counters.accepted += 1;
+        self.x.write(sample.x);
+        if let Some(v) = sample.v {
+            self.v.write(v);
+        }
+        if let Some(u) = sample.u {
+            self.u.write(u);
+        }
+        if self.x.len() >= self.config.window {
+            self.since_row += 1;
+            if self.since_row >= self.config.row_stride {
+                self.since_row = 0;
+                self.row(sample.t);
+            }
+        }
+        self.since_screen += 1;
+        if self.since_screen >= self.config.screening_period {
+            self.since_screen = 0;
+            return Ok(self.screen());
+        }
+        Ok(false)
+    }
+
+    fn check(&self, s: &Sample<T>) -> Result<(), Rejection> {
+        let channels = self.config.channels;
+        if s.v.is_some() != channels.velocity || s.u.is_some() != channels.input {
+            return Err(Rejection::Channels);
+        }
+        let values = [Some(s.x), s.v, s.u];
+        if !s.t.is_finite() || values.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(Rejection::NonFinite);
+        }
+        let limit = self.config.max_abs;
+        if values.iter().flatten().any(|v| v.abs().to_f64() > limit) {
+            return Err(Rejection::OutOfRange);
+        }
+        if let Some(last) = self.last_t {
+            if s.t - last < 0.5 * self.config.sample_period {
+                return Err(Rejection::OutOfOrder);
+            }
+        }
+        Ok(())
+    }
+
+    /// Forgets the window (after a gap): the factors and statistics are kept.
+    fn restart(&mut self) {
+        self.x.clear();
+        self.v.clear();
+        self.u.clear();
+        self.since_row = 0;
+        self.smooth_x.restart();
+        self.smooth_v.restart();
+        self.delay_len = 0;
+        self.delay_head = 0;
+    }
+
+    /// Computes the regression row whose centre lies half a window behind `t_newest`.
+    fn row(&mut self, t_newest: f64) {
+        let taps = &self.taps;
+        let (xa, xb) = self.x.as_slices();
+        let x_hat = taps.apply(0, xa, xb);
+        let (v_hat, y_hat) = if self.config.channels.velocity {
+            let (va, vb) = self.v.as_slices();
+            let v_hat = taps.apply(0, va, vb);
+            // The velocity offset shows as mean(v) − mean(dx/dt).
+            let from_x = taps.apply(1, xa, xb);
+            self.dv_sum += v_hat - from_x;
+            self.dv_weight += T::ONE;
+            (v_hat, taps.apply(1, va, vb))
+        } else {
+            (taps.apply(1, xa, xb), taps.apply(2, xa, xb))
+        };
+        let u_hat = if self.config.channels.input {
+            let (ua, ub) = self.u.as_slices();
+            taps.apply(0, ua, ub)
+        } else {
+            T::ZERO
+        };
+        let t_centre = t_newest - (self.config.window - 1) as f64 / 2.0 * self.config.sample_period;
+        let row = if self.config.smoothing {
+            let sx = self.smooth_x.push(x_hat);
+            let sv = self.smooth_v.push(v_hat);
+            // Delay x'', u and t by the smoother's lag.
+            let slot = (self.delay_head + self.delay_len) % DELAY;
+            self.delay[slot] = (y_hat, u_hat, t_centre);
+            if self.delay_len < DELAY {
+                self.delay_len += 1;
+            } else {
+                self.delay_head = (self.delay_head + 1) % DELAY;
+            }
+            match (sx, sv) {
+                (Some(x), Some(v)) if self.delay_len == DELAY => {
+                    let (y, u, t) = self.delay[self.delay_head];
+                    Row { x, v, y, u, t }
+                }
+                _ => return,
+            }
+        } else {
+            Row { x: x_hat, v: v_hat, y: y_hat, u: u_hat, t: t_centre }
+        };
+        // The excitation gate.
+        let v2 = row.v * row.v;
+        self.short_v2 += self.short_alpha * (v2 - self.short_v2);
+        let warm = self.long_weight > T::from_usize(self.block_len as usize);
+        if warm && self.short_v2 < T::from_f64(GATE * GATE) * self.long_v2 {
+            self.counters.gated += 1;
+            return;
+        }
+        let lambda = self.sqrt_lambda * self.sqrt_lambda;
+        self.long_weight = lambda * self.long_weight + T::ONE;
+        self.long_v2 += (v2 - self.long_v2) / self.long_weight;
+        self.x_min = self.x_min.min(row.x);
+        self.x_max = self.x_max.max(row.x);
+        if self.warmup.len() < WARMUP_ROWS || self.counters.rows == 0 && !self.warmup.is_empty() {
+            if self.warmup.push(row).is_ok() && self.warmup.len() < WARMUP_ROWS {
+                return;
+            }
+            self.set_scales();
+            let rows = core::mem::take(&mut self.warmup);
+            for r in rows.iter() {
+                self.fold(r);
+            }
+            // Keep the (now empty) buffer "full" in spirit: rows go straight to the factors.
+            self.warmup = rows;
+            return;
+        }
+        self.fold(&row);
+    }
+
+    /// Column scales from the warm-up rows: each column and x'' become O(1).
+    fn set_scales(&mut self) {
+        let mut sums = [T::ZERO; 4];
+        for r in self.warmup.iter() {
+            for (s, v) in sums.iter_mut().zip([r.x, r.v, r.u, r.y]) {
+                *s += v * v;
+            }
+        }
+        let count = T::from_usize(self.warmup.len().max(1));
+        let rms = sums.map(|s| {
+            let r = (s / count).sqrt();
+            if r > T::ZERO && r.is_finite() { r } else { T::ONE }
+        });
+        let (sx, sv, su, sy) = (rms[0], rms[1], rms[2], rms[3]);
+        for (j, term) in self.library.terms().iter().enumerate() {
+            let d = match *term {
+                Term::Monomial { px, pv } => crate::library::powi(sx, px) * crate::library::powi(sv, pv),
+                Term::Input => su,
+                _ => T::ONE,
+            };
+            self.scales[j] = d;
+            self.inverse_scales[j] = T::ONE / d;
+        }
+        self.y_scale = sy;
+    }
+
+    fn fold(&mut self, r: &Row<T>) {
+        let mut theta = [T::ZERO; P];
+        let omega = self.config.omega;
+        let p = omega * r.t;
+        let tau = 2.0 * core::f64::consts::PI;
+        let phase = T::from_f64(p - tau * libm::floor(p / tau));
+        self.library.evaluate(r.x, r.v, phase, r.u, &mut theta);
+        for (t, s) in theta.iter_mut().zip(self.inverse_scales.iter()) {
+            *t *= *s;
+        }
+        let y = r.y / self.y_scale;
+        // Rows go into a block factor first; a whole block is then merged into A or B. The
+        // big factors thus grow by block-sized increments, which f32 resolves, instead of by
+        // single rows, whose relative size 1/n falls below f32's rounding after ~10⁵ rows.
+        self.block.update(&theta, y, self.sqrt_lambda);
+        self.counters.rows += 1;
+        if self.counters.rows % self.block_len == 0 {
+            let parity = (self.counters.rows / self.block_len) % 2;
+            let factor = if parity == 1 { &mut self.a } else { &mut self.b };
+            factor.forget(self.sqrt_lambda_blocks);
+            factor.merge(&self.block);
+            self.block.clear();
+        }
+    }
+
+    /// The two halves including the block in progress.
+    fn halves(&self) -> (Factor<T, P>, Factor<T, P>) {
+        let (mut a, mut b) = (self.a.clone(), self.b.clone());
+        if self.block.weight() > T::ZERO {
+            let parity = (self.counters.rows / self.block_len) % 2;
+            if parity == 0 { a.merge(&self.block) } else { b.merge(&self.block) }
+        }
+        (a, b)
+    }
+
+    /// Runs a screening now (it also runs by itself every `screening_period` samples).
+    /// Returns whether a model came out (it needs enough rows in both halves).
+    pub fn screen(&mut self) -> bool {
+        let n = self.library.len();
+        let enough = T::from_usize(2 * n);
+        let (mut a, mut b) = self.halves();
+        if a.weight() < enough || b.weight() < enough {
+            return false;
+        }
+        self.counters.screenings += 1;
+        let parsimony = T::from_f64(self.config.parsimony);
+        let grid = usize::from(self.config.thresholds);
+        let (x_closed, v_closed) = self.library.shift_closed();
+        let offsets = self.config.offsets && self.library.config().constant;
+        // The velocity offset: move v's origin first, so that v = 0 at rest.
+        let mut offset_v = T::ZERO;
+        if offsets && v_closed && self.config.channels.velocity && self.dv_weight > T::ZERO {
+            offset_v = self.dv_sum / self.dv_weight;
+            let m = self.shift(T::ZERO, offset_v);
+            a.transform(&m);
+            b.transform(&m);
+        }
+        let mut all = a.clone();
+        all.merge(&b);
+        // Candidate origins for x: the equilibria of the unforced dense model near the data.
+        let mut candidates: heapless::Vec<T, 6> = heapless::Vec::new();
+        let _ = candidates.push(T::ZERO);
+        if offsets && x_closed {
+            self.equilibria(&all, &mut candidates);
+        }
+        let mut best: Option<(u32, T, T, screen::Sweep<T, P>)> = None;
+        for &c in candidates.iter() {
+            let result = if c == T::ZERO {
+                screen::sweep(&a, &b, &all, grid, parsimony)
+            } else {
+                let m = self.shift(c, T::ZERO);
+                let (mut a2, mut b2, mut all2) = (a.clone(), b.clone(), all.clone());
+                a2.transform(&m);
+                b2.transform(&m);
+                all2.transform(&m);
+                screen::sweep(&a2, &b2, &all2, grid, parsimony)
+            };
+            let Some(selected) = result.solutions.get(result.selected).copied() else { continue };
+            let better = match &best {
+                None => true,
+                Some((len, err, _, _)) => selected.len() < *len || (selected.len() == *len && selected.mean_error < *err),
+            };
+            if better {
+                best = Some((selected.len(), selected.mean_error, c, result));
+            }
+        }
+        let keep = T::from_f64(0.5);
+        self.smooth_x.choose_k(keep);
+        self.smooth_v.choose_k(keep);
+        let Some((_, _, offset_x, sweep)) = best else { return false };
+        let mut coefficients = [T::ZERO; P];
+        for j in 0..n {
+            coefficients[j] = sweep.coefficients[j] * self.y_scale / self.scales[j];
+        }
+        let y2 = self.y_scale * self.y_scale;
+        let mut solutions: heapless::Vec<Solution<T>, MAX_SOLUTIONS> = heapless::Vec::new();
+        for s in sweep.solutions.iter() {
+            let _ = solutions.push(Solution { mean_error: s.mean_error * y2, ..*s });
+        }
+        let mut terms = heapless::Vec::new();
+        for &t in self.library.terms() {
+            let _ = terms.push(t);
+        }
+        let k = |s: &KnnSmoother<T>| if self.config.smoothing { s.k() as u8 } else { 0 };
+        self.model = Some(Model {
+            terms,
+            coefficients,
+            solutions,
+            selected: sweep.selected,
+            k: (k(&self.smooth_x), k(&self.smooth_v)),
+            omega: self.config.omega,
+            offset_x,
+            offset_v,
+            samples: self.counters.accepted,
+            rejected: self.counters.rejected(),
+            rows: self.counters.rows,
+        });
+        true
+    }
+
+    /// The column map (scaled) that moves the origin of x and v by (cx, cv): the new columns
+    /// are θ(x − cx, v − cv) = M(−c) θ(x, v).
+    fn shift(&self, cx: T, cv: T) -> [[T; P]; P] {
+        let n = self.library.len();
+        let mut m = [[T::ZERO; P]; P];
+        self.library.shift_matrix(-cx, -cv, &mut m);
+        let mut b = [[T::ZERO; P]; P];
+        for k in 0..n {
+            for j in 0..n {
+                // Scaled: B[k][j] = M[j][k] d_k / d_j (columns θ/d).
+                b[k][j] = m[j][k] * self.scales[k] * self.inverse_scales[j];
+            }
+        }
+        b
+    }
+
+    /// Real roots of the dense model's unforced restoring force p(x) = Σ ξ_(a,0) x^a (v = 0,
+    /// no excitation) within the data's range widened by half of it, nearest the middle first.
+    fn equilibria(&self, all: &Factor<T, P>, out: &mut heapless::Vec<T, 6>) {
+        let n = self.library.len();
+        let full: u32 = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+        let mut xi = [T::ZERO; P];
+        all.solve(full, &mut xi);
+        let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
+        let mut any = false;
+        for (j, term) in self.library.terms().iter().enumerate() {
+            let c = (xi[j] * self.y_scale / self.scales[j]).to_f64();
+            match *term {
+                Term::Constant => poly[0] = c,
+                Term::Monomial { px, pv: 0 } => {
+                    poly[usize::from(px)] = c;
+                    any = true;
+                }
+                _ => {}
+            }
+        }
+        if !any || self.x_max < self.x_min {
+            return;
+        }
+        let (lo, hi) = (self.x_min.to_f64(), self.x_max.to_f64());
+        let middle = 0.5 * (lo + hi);
+        let (lo, hi) = (lo - 0.5 * (hi - lo), hi + 0.5 * (hi - lo));
+        let p = |x: f64| poly.iter().rev().fold(0.0, |acc, &c| acc * x + c);
+        const STEPS: usize = 256;
+        let mut roots: heapless::Vec<f64, 16> = heapless::Vec::new();
+        let mut x0 = lo;
+        let mut p0 = p(x0);
+        for i in 1..=STEPS {
+            let x1 = lo + (hi - lo) * i as f64 / STEPS as f64;
+            let p1 = p(x1);
+            if p0 == 0.0 || p0 * p1 < 0.0 {
+                let (mut a, mut b, mut pa) = (x0, x1, p0);
+                for _ in 0..80 {
+                    let m = 0.5 * (a + b);
+                    let pm = p(m);
+                    if pa * pm <= 0.0 {
+                        b = m;
+                    } else {
+                        a = m;
+                        pa = pm;
+                    }
+                }
+                let _ = roots.push(0.5 * (a + b));
+            }
+            x0 = x1;
+            p0 = p1;
+        }
+        // Nearest the middle of the data first.
+        let r = roots.as_mut_slice();
+        for i in 1..r.len() {
+            let mut k = i;
+            while k > 0 && libm::fabs(r[k - 1] - middle) > libm::fabs(r[k] - middle) {
+                r.swap(k - 1, k);
+                k -= 1;
+            }
+        }
+        for &root in roots.iter() {
+            if out.push(T::from_f64(root)).is_err() {
+                break;
+            }
+        }
+    }
+}

@@ -1,0 +1,485 @@
+//! The library of candidate terms Θ(x, x', t [, u]) (paper eqs. 12, 13 and 18).
+//!
+//! ```
+//! use lssi_core::{Library, LibraryConfig, PolyFamily};
+//! let config = LibraryConfig { poly_order: 3, family: PolyFamily::All, constant: true,
+//!                              harmonics: 1, input: false };
+//! let library: Library<16> = Library::new(&config).unwrap();
+//! assert_eq!(library.len(), 12); // 1, 9 monomials, sin and cos (the firmware default)
+//! ```
+//!
+//! Columns are ordered: constant, monomials by total degree then by falling power of x,
+//! sin/cos pairs by harmonic, then the measured input `u`. A term is named the same way
+//! everywhere (the command line, JSON, the wire): `1`, `x`, `v`, `x^2`, `x*v`, `x^2*v`,
+//! `v^3`, `u`, `cos(2t)`, `sin(21.4t)`.
+
+use crate::real::Real;
+use core::fmt;
+
+/// The largest polynomial order the library supports (the paper's harvester goes to 9).
+pub const MAX_POLY_ORDER: u8 = 9;
+/// The largest number of harmonics of Ω.
+pub const MAX_HARMONICS: u8 = 8;
+
+/// One candidate term.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Term {
+    /// The constant 1.
+    Constant,
+    /// x^px · v^pv, with px + pv ≥ 1.
+    Monomial {
+        /// Power of the displacement x.
+        px: u8,
+        /// Power of the velocity v = x'.
+        pv: u8,
+    },
+    /// sin(k Ω t).
+    Sin(u8),
+    /// cos(k Ω t).
+    Cos(u8),
+    /// The measured excitation u.
+    Input,
+}
+
+impl Term {
+    /// Writes the term's name, with `omega` the base angular frequency in rad/s.
+    pub fn write_name<W: fmt::Write>(&self, out: &mut W, omega: f64) -> fmt::Result {
+        match *self {
+            Term::Constant => out.write_str("1"),
+            Term::Monomial { px, pv } => {
+                let mut first = true;
+                for (symbol, power) in [("x", px), ("v", pv)] {
+                    if power == 0 {
+                        continue;
+                    }
+                    if !first {
+                        out.write_str("*")?;
+                    }
+                    first = false;
+                    out.write_str(symbol)?;
+                    if power > 1 {
+                        write!(out, "^{power}")?;
+                    }
+                }
+                Ok(())
+            }
+            Term::Sin(k) | Term::Cos(k) => {
+                let name = if matches!(self, Term::Sin(_)) { "sin" } else { "cos" };
+                out.write_str(name)?;
+                out.write_str("(")?;
+                write_frequency(out, f64::from(k) * omega)?;
+                out.write_str("t)")
+            }
+            Term::Input => out.write_str("u"),
+        }
+    }
+
+    /// A value that `Display`s as the term's name.
+    pub fn name(&self, omega: f64) -> TermName {
+        TermName { term: *self, omega }
+    }
+}
+
+/// A term together with Ω, displayed as the term's name.
+#[derive(Clone, Copy, Debug)]
+pub struct TermName {
+    term: Term,
+    omega: f64,
+}
+
+impl fmt::Display for TermName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.term.write_name(f, self.omega)
+    }
+}
+
+/// Writes an angular frequency with at most 6 significant digits and no trailing zeros;
+/// exactly 1 is written as nothing (`cos(t)`).
+fn write_frequency<W: fmt::Write>(out: &mut W, w: f64) -> fmt::Result {
+    if w == 1.0 {
+        return Ok(());
+    }
+    if !w.is_finite() || w <= 0.0 {
+        return write!(out, "{w}*");
+    }
+    // Number of digits before the point decides how many decimals keep 6 significant ones.
+    let mut magnitude = 0i32;
+    let mut scaled = w;
+    while scaled >= 10.0 {
+        scaled /= 10.0;
+        magnitude += 1;
+    }
+    while scaled < 1.0 {
+        scaled *= 10.0;
+        magnitude -= 1;
+    }
+    let decimals = (5 - magnitude).clamp(0, 12) as usize;
+    let mut buffer = heapless::String::<40>::new();
+    if fmt::write(&mut buffer, format_args!("{w:.decimals$}")).is_err() {
+        return write!(out, "{w}");
+    }
+    let text = buffer.as_str();
+    let text = if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        text
+    };
+    out.write_str(text)
+}
+
+/// Which monomials of (x, v) enter the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PolyFamily {
+    /// Every monomial x^a v^b with 1 ≤ a + b ≤ order (the paper's eq. 18 at order 3).
+    All,
+    /// x^k and x^(k-1)·v for k = 1..=order.
+    Families,
+    /// x^k and x^(k-1)·v for odd k only (the paper's Table 7).
+    OddFamilies,
+}
+
+/// What the library holds: runtime selection within the const capacity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LibraryConfig {
+    /// Highest total polynomial order (1..=9).
+    pub poly_order: u8,
+    /// Which monomials.
+    pub family: PolyFamily,
+    /// Whether the constant term is a candidate.
+    pub constant: bool,
+    /// sin/cos(kΩt) for k = 1..=harmonics (0 leaves them out).
+    pub harmonics: u8,
+    /// Whether the measured excitation u is a candidate.
+    pub input: bool,
+}
+
+impl Default for LibraryConfig {
+    fn default() -> Self {
+        Self { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 1, input: false }
+    }
+}
+
+/// Why a library cannot be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum LibraryError {
+    /// `poly_order` is 0 or above [`MAX_POLY_ORDER`].
+    PolyOrder(u8),
+    /// `harmonics` is above [`MAX_HARMONICS`].
+    Harmonics(u8),
+    /// More terms than the capacity `P` (or than 32, the width of a support mask).
+    TooManyTerms {
+        /// Terms the configuration asks for.
+        wanted: usize,
+        /// Room there is.
+        capacity: usize,
+    },
+}
+
+impl fmt::Display for LibraryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LibraryError::PolyOrder(p) => {
+                write!(f, "library.poly_order is {p}, but it must be between 1 and {MAX_POLY_ORDER}")
+            }
+            LibraryError::Harmonics(h) => {
+                write!(f, "library.harmonics is {h}, but at most {MAX_HARMONICS} are supported")
+            }
+            LibraryError::TooManyTerms { wanted, capacity } => write!(
+                f,
+                "the library has {wanted} terms, but the identifier was built for at most {capacity}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for LibraryError {}
+
+/// The active library: up to `P` terms, in column order.
+#[derive(Clone, Debug)]
+pub struct Library<const P: usize> {
+    terms: heapless::Vec<Term, P>,
+    config: LibraryConfig,
+}
+
+impl<const P: usize> Library<P> {
+    /// Builds the library a configuration asks for.
+    pub fn new(config: &LibraryConfig) -> Result<Self, LibraryError> {
+        if config.poly_order == 0 || config.poly_order > MAX_POLY_ORDER {
+            return Err(LibraryError::PolyOrder(config.poly_order));
+        }
+        if config.harmonics > MAX_HARMONICS {
+            return Err(LibraryError::Harmonics(config.harmonics));
+        }
+        let wanted = Self::count(config);
+        let capacity = P.min(32);
+        if wanted > capacity {
+            return Err(LibraryError::TooManyTerms { wanted, capacity });
+        }
+        let mut terms = heapless::Vec::new();
+        let mut push = |t: Term| {
+            // Cannot fail: `count` was checked against the capacity above.
+            let _ = terms.push(t);
+        };
+        if config.constant {
+            push(Term::Constant);
+        }
+        for degree in 1..=config.poly_order {
+            for pv in 0..=degree {
+                let px = degree - pv;
+                if Self::admits(config.family, px, pv) {
+                    push(Term::Monomial { px, pv });
+                }
+            }
+        }
+        for k in 1..=config.harmonics {
+            push(Term::Sin(k));
+            push(Term::Cos(k));
+        }
+        if config.input {
+            push(Term::Input);
+        }
+        Ok(Self { terms, config: *config })
+    }
+
+    /// The number of terms a configuration asks for.
+    pub fn count(config: &LibraryConfig) -> usize {
+        let mut n = usize::from(config.constant) + 2 * usize::from(config.harmonics) + usize::from(config.input);
+        for degree in 1..=config.poly_order.min(MAX_POLY_ORDER) {
+            for pv in 0..=degree {
+                if Self::admits(config.family, degree - pv, pv) {
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
+
+    fn admits(family: PolyFamily, px: u8, pv: u8) -> bool {
+        match family {
+            PolyFamily::All => true,
+            PolyFamily::Families => pv == 0 || pv == 1,
+            PolyFamily::OddFamilies => (pv == 0 && px % 2 == 1) || (pv == 1 && px % 2 == 0),
+        }
+    }
+
+    /// The terms, in column order.
+    pub fn terms(&self) -> &[Term] {
+        &self.terms
+    }
+
+    /// The configuration it was built from.
+    pub fn config(&self) -> &LibraryConfig {
+        &self.config
+    }
+
+    /// Number of terms.
+    pub fn len(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// Whether the library is empty (it never is once built).
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
+    /// Column index of a term.
+    pub fn index_of(&self, term: Term) -> Option<usize> {
+        self.terms.iter().position(|&t| t == term)
+    }
+
+    /// Evaluates one row θ(x, v, φ, u) into `row` (length ≥ `len()`); `phase` is Ω t reduced
+    /// to [0, 2π). Powers are built by repeated multiplication, harmonics by the Chebyshev
+    /// recurrence, so a row costs one sin and one cos whatever H is.
+    pub fn evaluate<T: Real>(&self, x: T, v: T, phase: T, u: T, row: &mut [T]) {
+        let order = usize::from(self.config.poly_order);
+        let mut xp = [T::ONE; MAX_POLY_ORDER as usize + 1];
+        let mut vp = [T::ONE; MAX_POLY_ORDER as usize + 1];
+        for i in 1..=order {
+            xp[i] = xp[i - 1] * x;
+            vp[i] = vp[i - 1] * v;
+        }
+        let harmonics = usize::from(self.config.harmonics);
+        let mut sines = [T::ZERO; MAX_HARMONICS as usize + 1];
+        let mut cosines = [T::ONE; MAX_HARMONICS as usize + 1];
+        if harmonics > 0 {
+            let (s1, c1) = (phase.sin(), phase.cos());
+            sines[1] = s1;
+            cosines[1] = c1;
+            let two_c = c1 + c1;
+            for k in 2..=harmonics {
+                sines[k] = two_c * sines[k - 1] - sines[k - 2];
+                cosines[k] = two_c * cosines[k - 1] - cosines[k - 2];
+            }
+        }
+        for (slot, term) in row.iter_mut().zip(self.terms.iter()) {
+            *slot = match *term {
+                Term::Constant => T::ONE,
+                Term::Monomial { px, pv } => xp[usize::from(px)] * vp[usize::from(pv)],
+                Term::Sin(k) => sines[usize::from(k)],
+                Term::Cos(k) => cosines[usize::from(k)],
+                Term::Input => u,
+            };
+        }
+    }
+
+    /// Whether every lower monomial a shift of x (and of v) produces is in the library, so
+    /// that moving the coordinate origin is a linear map of the columns (DESIGN.md, "Sensor
+    /// offsets"). Returns (x-shift closed, v-shift closed).
+    pub fn shift_closed(&self) -> (bool, bool) {
+        let has = |px: u8, pv: u8| {
+            if px == 0 && pv == 0 {
+                self.config.constant
+            } else {
+                self.index_of(Term::Monomial { px, pv }).is_some()
+            }
+        };
+        let mut x_closed = true;
+        let mut v_closed = true;
+        for term in self.terms.iter() {
+            if let Term::Monomial { px, pv } = *term {
+                for i in 0..px {
+                    x_closed &= has(i, pv);
+                }
+                for k in 0..pv {
+                    v_closed &= has(px, k);
+                }
+            }
+        }
+        (x_closed, v_closed)
+    }
+
+    /// Writes M(cx, cv), the matrix with θ(x + cx, v + cv) = M θ(x, v), into `m` (row-major,
+    /// stride `P`). Only meaningful when [`Library::shift_closed`] holds for the shifted
+    /// channels; entries that would fall outside the library are dropped.
+    pub fn shift_matrix<T: Real>(&self, cx: T, cv: T, m: &mut [[T; P]; P]) {
+        let n = self.len();
+        for row in m.iter_mut().take(n) {
+            for v in row.iter_mut().take(n) {
+                *v = T::ZERO;
+            }
+        }
+        for (j, term) in self.terms.iter().enumerate() {
+            match *term {
+                Term::Monomial { px, pv } => {
+                    for i in 0..=px {
+                        for k in 0..=pv {
+                            let coefficient = T::from_f64(binomial(px, i) * binomial(pv, k))
+                                * powi(cx, px - i)
+                                * powi(cv, pv - k);
+                            let column = if i == 0 && k == 0 {
+                                self.index_of(Term::Constant)
+                            } else {
+                                self.index_of(Term::Monomial { px: i, pv: k })
+                            };
+                            if let Some(c) = column {
+                                m[j][c] += coefficient;
+                            }
+                        }
+                    }
+                }
+                _ => m[j][j] = T::ONE,
+            }
+        }
+    }
+}
+
+/// The binomial coefficient C(n, k) for small n.
+fn binomial(n: u8, k: u8) -> f64 {
+    let mut r = 1.0;
+    for i in 0..k {
+        r = r * f64::from(n - i) / f64::from(i + 1);
+    }
+    r
+}
+
+/// x^n by repeated multiplication (n ≤ 9).
+pub(crate) fn powi<T: Real>(x: T, n: u8) -> T {
+    let mut r = T::ONE;
+    for _ in 0..n {
+        r *= x;
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::string::ToString;
+
+    #[test]
+    fn names_follow_the_convention() {
+        let cases = [
+            (Term::Constant, 2.0, "1"),
+            (Term::Monomial { px: 1, pv: 0 }, 2.0, "x"),
+            (Term::Monomial { px: 0, pv: 1 }, 2.0, "v"),
+            (Term::Monomial { px: 2, pv: 1 }, 2.0, "x^2*v"),
+            (Term::Monomial { px: 1, pv: 1 }, 2.0, "x*v"),
+            (Term::Monomial { px: 0, pv: 3 }, 2.0, "v^3"),
+            (Term::Cos(1), 2.0, "cos(2t)"),
+            (Term::Sin(1), 21.4, "sin(21.4t)"),
+            (Term::Cos(1), 1.0, "cos(t)"),
+            (Term::Sin(3), 1.0, "sin(3t)"),
+            (Term::Cos(1), 21.412345678, "cos(21.4123t)"),
+            (Term::Cos(1), 0.0123456789, "cos(0.0123457t)"),
+            (Term::Input, 2.0, "u"),
+        ];
+        for (term, omega, name) in cases {
+            assert_eq!(term.name(omega).to_string(), name);
+        }
+    }
+
+    #[test]
+    fn paper_eq18_library_has_sixteen_terms() {
+        let config = LibraryConfig { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 3, input: false };
+        let library: Library<24> = Library::new(&config).unwrap();
+        assert_eq!(library.len(), 16);
+        assert_eq!(library.shift_closed(), (true, true));
+        let odd = LibraryConfig { family: PolyFamily::OddFamilies, ..config };
+        let library: Library<24> = Library::new(&odd).unwrap();
+        assert_eq!(library.shift_closed().0, false);
+    }
+
+    #[test]
+    fn capacity_is_checked() {
+        let config = LibraryConfig { poly_order: 9, family: PolyFamily::All, constant: true, harmonics: 3, input: true };
+        let err = Library::<16>::new(&config).unwrap_err();
+        assert!(matches!(err, LibraryError::TooManyTerms { .. }));
+        assert!(err.to_string().contains("terms"));
+    }
+
+    #[test]
+    fn shift_matrix_moves_the_origin() {
+        let config = LibraryConfig { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 1, input: false };
+        let library: Library<16> = Library::new(&config).unwrap();
+        let (x, v, cx, cv) = (0.7f64, -0.3f64, 0.25f64, -0.1f64);
+        let mut m = [[0.0; 16]; 16];
+        library.shift_matrix(cx, cv, &mut m);
+        let mut row = [0.0; 16];
+        let mut shifted = [0.0; 16];
+        library.evaluate(x, v, 0.4, 0.0, &mut row);
+        library.evaluate(x + cx, v + cv, 0.4, 0.0, &mut shifted);
+        for j in 0..library.len() {
+            let mapped: f64 = (0..library.len()).map(|c| m[j][c] * row[c]).sum();
+            assert!((mapped - shifted[j]).abs() < 1e-12, "column {j}");
+        }
+    }
+
+    #[test]
+    fn harmonics_by_recurrence_match_libm() {
+        let config = LibraryConfig { poly_order: 1, family: PolyFamily::All, constant: false, harmonics: 5, input: false };
+        let library: Library<16> = Library::new(&config).unwrap();
+        let mut row = [0.0f64; 16];
+        library.evaluate(0.0, 0.0, 1.3, 0.0, &mut row);
+        for k in 1..=5u8 {
+            let s = library.index_of(Term::Sin(k)).unwrap();
+            let c = library.index_of(Term::Cos(k)).unwrap();
+            assert!((row[s] - (f64::from(k) * 1.3).sin()).abs() < 1e-12);
+            assert!((row[c] - (f64::from(k) * 1.3).cos()).abs() < 1e-12);
+        }
+    }
+}

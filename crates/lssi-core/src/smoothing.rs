@@ -1,0 +1,297 @@
+//! k-neighbour smoothing (paper eqs. 1–6), streaming, one channel at a time.
+//!
+//! Each point of a channel is rebuilt from its K nearest neighbours among the rows around it.
+//! A point is described by its context — the values just before and after it, Xᵢ = (sᵢ₋₁, sᵢ₊₁)
+//! — and its neighbours are the candidates with the closest context (eq. 1). The weights are
+//! those of eq. 5, wᵢ = Z⁻¹1 / 1ᵀZ⁻¹1, with the local Gram matrix Z regularised as
+//! Z + r·tr(Z)·I because it is singular whenever K exceeds the context's dimension. The
+//! smoothed value is the same combination of the neighbours' own values (eq. 6). The point's
+//! own value is never part of its reconstruction, so the reconstruction error
+//!
+//!   ε(K) = mean over rows of (sᵢ − s̄ᵢ(K))²
+//!
+//! is a leave-one-out prediction error: it falls while more neighbours average the noise away
+//! and rises once they are too far to share the point's value. K is the minimiser of ε(K)
+//! (the paper's Fig. 4), taking the largest K within 1 % of the minimum, and is re-chosen
+//! every time the identifier screens. With one fixed regularisation (from the largest K) the
+//! Gram matrices of all K are leading blocks of one matrix, so one Cholesky factorisation
+//! gives ε(K) for every K at once.
+
+use crate::real::Real;
+
+/// The largest K.
+pub const MAX_NEIGHBOURS: usize = 8;
+/// The smallest K.
+pub const MIN_NEIGHBOURS: usize = 2;
+/// Candidates lie within this many rows either side of the point.
+pub const SPAN: usize = 6;
+/// Rows of history: the candidates and one row of context beyond each end.
+const RING: usize = 2 * SPAN + 3;
+/// Regularisation r of Z + r·tr(Z)·I.
+const REGULARISATION: f64 = 0.1;
+/// ε(K) is evaluated on one row in this many (the cost is spread out).
+const EVALUATE_EVERY: u32 = 4;
+
+/// A streaming k-neighbour smoother for one channel.
+#[derive(Clone, Debug)]
+pub struct KnnSmoother<T> {
+    ring: [T; RING],
+    filled: usize,
+    head: usize,
+    k: usize,
+    errors: [T; MAX_NEIGHBOURS + 1],
+    rows: u32,
+}
+
+impl<T: Real> Default for KnnSmoother<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Real> KnnSmoother<T> {
+    /// A smoother that has seen nothing; K starts at the largest value until ε(K) speaks.
+    pub fn new() -> Self {
+        Self {
+            ring: [T::ZERO; RING],
+            filled: 0,
+            head: 0,
+            k: MAX_NEIGHBOURS,
+            errors: [T::ZERO; MAX_NEIGHBOURS + 1],
+            rows: 0,
+        }
+    }
+
+    /// Rows between a value going in and its smoothed value coming out.
+    pub const LAG: usize = SPAN + 1;
+
+    /// Forgets the history (after a gap in the data), keeping K and ε(K).
+    pub fn restart(&mut self) {
+        self.filled = 0;
+        self.head = 0;
+    }
+
+    /// The current K.
+    pub fn k(&self) -> usize {
+        self.k
+    }
+
+    /// The accumulated ε(K) for K = `MIN_NEIGHBOURS..=MAX_NEIGHBOURS` (index K).
+    pub fn errors(&self) -> &[T; MAX_NEIGHBOURS + 1] {
+        &self.errors
+    }
+
+    /// Re-chooses K from ε(K) and starts a new accumulation weighted by `keep` (0 forgets the
+    /// past errors, 1 keeps them all).
+    pub fn choose_k(&mut self, keep: T) {
+        let mut best = T::MAX;
+        for k in MIN_NEIGHBOURS..=MAX_NEIGHBOURS {
+            best = best.min(self.errors[k]);
+        }
+        if best == T::MAX || best <= T::ZERO && self.rows == 0 {
+            return;
+        }
+        let tolerance = best * T::from_f64(1.01);
+        for k in (MIN_NEIGHBOURS..=MAX_NEIGHBOURS).rev() {
+            if self.errors[k] <= tolerance {
+                self.k = k;
+                break;
+            }
+        }
+        for e in self.errors.iter_mut() {
+            *e *= keep;
+        }
+    }
+
+    fn at(&self, i: usize) -> T {
+        // i = 0 is the oldest of the RING rows.
+        self.ring[(self.head + i) % RING]
+    }
+
+    /// Pushes the next row's value; once the history is full, returns the smoothed value of
+    /// the row [`Self::LAG`] rows back.
+    pub fn push(&mut self, value: T) -> Option<T> {
+        self.ring[(self.head + self.filled) % RING] = value;
+        if self.filled < RING {
+            self.filled += 1;
+            if self.filled < RING {
+                return None;
+            }
+        } else {
+            self.head = (self.head + 1) % RING;
+        }
+        let centre = SPAN + 1;
+        let own = self.at(centre);
+        let (cl, cr) = (self.at(centre - 1), self.at(centre + 1));
+        // Candidates: rows 1..=2·SPAN+1 except the centre, nearest context first.
+        let mut order = [0usize; 2 * SPAN];
+        let mut distance = [T::ZERO; 2 * SPAN];
+        let mut count = 0;
+        for j in 1..=2 * SPAN + 1 {
+            if j == centre {
+                continue;
+            }
+            let (dl, dr) = (self.at(j - 1) - cl, self.at(j + 1) - cr);
+            // Insertion into the sorted prefix (2·SPAN candidates: cheap).
+            let d = dl * dl + dr * dr;
+            let mut p = count;
+            while p > 0 && distance[p - 1] > d {
+                distance[p] = distance[p - 1];
+                order[p] = order[p - 1];
+                p -= 1;
+            }
+            distance[p] = d;
+            order[p] = j;
+            count += 1;
+        }
+        self.rows = self.rows.wrapping_add(1);
+        let evaluate = self.rows % EVALUATE_EVERY == 0;
+        let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
+        // Local Gram matrix Z (eq. 4) of the k_used nearest contexts.
+        let mut diff = [[T::ZERO; 2]; MAX_NEIGHBOURS];
+        for (a, d) in diff.iter_mut().enumerate().take(k_used) {
+            let j = order[a];
+            *d = [cl - self.at(j - 1), cr - self.at(j + 1)];
+        }
+        let mut z = [[T::ZERO; MAX_NEIGHBOURS]; MAX_NEIGHBOURS];
+        let mut trace = T::ZERO;
+        for a in 0..k_used {
+            for b in 0..=a {
+                let v = diff[a][0] * diff[b][0] + diff[a][1] * diff[b][1];
+                z[a][b] = v;
+                z[b][a] = v;
+            }
+            trace += z[a][a];
+        }
+        // The regularisation is fixed by the largest K so that every K's Gram matrix is a
+        // leading block of this one.
+        let full_trace = if evaluate {
+            trace
+        } else {
+            let mut t = trace;
+            for &j in order.iter().take(MAX_NEIGHBOURS).skip(k_used) {
+                let (dl, dr) = (cl - self.at(j - 1), cr - self.at(j + 1));
+                t += dl * dl + dr * dr;
+            }
+            t
+        };
+        let mu = T::from_f64(REGULARISATION) * full_trace + T::EPSILON * (own * own + T::EPSILON);
+        for (a, row) in z.iter_mut().enumerate().take(k_used) {
+            row[a] += mu;
+        }
+        // Cholesky Z = L Lᵀ, in place in the lower triangle.
+        for a in 0..k_used {
+            for b in 0..=a {
+                let mut s = z[a][b];
+                for c in 0..b {
+                    s -= z[a][c] * z[b][c];
+                }
+                if a == b {
+                    z[a][a] = if s > T::ZERO { s.sqrt() } else { T::EPSILON };
+                } else {
+                    z[a][b] = s / z[b][b];
+                }
+            }
+        }
+        let values = {
+            let mut v = [T::ZERO; MAX_NEIGHBOURS];
+            for (a, slot) in v.iter_mut().enumerate().take(k_used) {
+                *slot = self.at(order[a]);
+            }
+            v
+        };
+        // Forward solve L g = 1 once; for each K the weights solve Lₖᵀ w = gₖ (leading block).
+        let mut g = [T::ZERO; MAX_NEIGHBOURS];
+        for a in 0..k_used {
+            let mut s = T::ONE;
+            for c in 0..a {
+                s -= z[a][c] * g[c];
+            }
+            g[a] = s / z[a][a];
+        }
+        let weights_for = |k: usize| -> T {
+            let mut w = [T::ZERO; MAX_NEIGHBOURS];
+            for a in (0..k).rev() {
+                let mut s = g[a];
+                for c in a + 1..k {
+                    s -= z[c][a] * w[c];
+                }
+                w[a] = s / z[a][a];
+            }
+            let (mut sum, mut value) = (T::ZERO, T::ZERO);
+            for a in 0..k {
+                sum += w[a];
+                value += w[a] * values[a];
+            }
+            if sum.abs() > T::EPSILON { value / sum } else { own }
+        };
+        if evaluate {
+            let mut chosen = own;
+            for k in MIN_NEIGHBOURS..=MAX_NEIGHBOURS {
+                let estimate = weights_for(k);
+                let e = own - estimate;
+                self.errors[k] += e * e;
+                if k == self.k {
+                    chosen = estimate;
+                }
+            }
+            Some(chosen)
+        } else {
+            Some(weights_for(self.k))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keeps_a_straight_line() {
+        let mut s: KnnSmoother<f64> = KnnSmoother::new();
+        let mut out = std::vec::Vec::new();
+        for i in 0..100 {
+            if let Some(v) = s.push(0.5 * i as f64) {
+                out.push(v);
+            }
+        }
+        assert_eq!(out.len(), 100 - RING + 1);
+        for (i, v) in out.iter().enumerate() {
+            let expected = 0.5 * (i + KnnSmoother::<f64>::LAG) as f64;
+            assert!((v - expected).abs() < 1e-6, "{i}: {v} vs {expected}");
+        }
+    }
+
+    extern crate std;
+
+    #[test]
+    fn reduces_white_noise_on_a_slow_sine_and_picks_a_large_k() {
+        let mut s: KnnSmoother<f64> = KnnSmoother::new();
+        let mut state = 12345u64;
+        let (mut raw, mut smooth) = (0.0, 0.0);
+        let mut clean = std::vec::Vec::new();
+        let mut noisy = std::vec::Vec::new();
+        for i in 0..20000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let n = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2;
+            let c = (i as f64 * 0.01).sin();
+            clean.push(c);
+            noisy.push(c + n);
+            if let Some(v) = s.push(c + n) {
+                let j = i - KnnSmoother::<f64>::LAG;
+                if j > 1000 {
+                    raw += (noisy[j] - clean[j]).powi(2);
+                    smooth += (v - clean[j]).powi(2);
+                }
+            }
+            if i % 2000 == 1999 {
+                s.choose_k(0.0);
+            }
+        }
+        std::println!("ratio {} K {}", smooth / raw, s.k());
+        assert!(smooth < 0.5 * raw, "smoothed error {smooth} vs raw {raw}");
+        assert!(s.k() >= 6, "K = {}", s.k());
+    }
+}
