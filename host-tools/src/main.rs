@@ -1,2 +1,56 @@
-//! The `lssi` command (placeholder).
-fn main() {}
+//! The `lssi` command: parses the command line and dispatches to a subcommand in
+//! [`lssi_host::commands`]. Failures print as `lssi: <sentence>` on stderr and set the exit
+//! code (see [`lssi_host::error`]).
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use lssi_host::commands::{generate, identify, info};
+use lssi_host::error::CliError;
+
+/// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
+#[derive(Debug, Parser)]
+#[command(name = "lssi", version)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Write a synthetic recording (CSV) and its truth (JSON beside it).
+    Gen(generate::GenArgs),
+    /// Identify the equation of motion x'' = f(x, v, t) of a recording (CSV).
+    Identify(identify::IdentifyArgs),
+    /// Read a recording (CSV) and summarise it, or say why it cannot be used.
+    Info(info::InfoArgs),
+}
+
+fn run(cli: &Cli) -> Result<(), CliError> {
+    match &cli.command {
+        Command::Gen(args) => generate::run(args),
+        Command::Info(args) => info::run(args),
+        Command::Identify(args) => identify::run(args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("lssi: {error}");
+            ExitCode::from(error.exit_code())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_line_definition_is_consistent() {
+        super::Cli::command().debug_assert();
+    }
+}

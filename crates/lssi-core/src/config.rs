@@ -149,16 +149,20 @@ impl Config {
         }
         let min = usize::from(self.derivative_degree) + 3;
         if self.window < min || self.window > W {
-            return Err(ConfigError::Window { window: self.window, min, max: W });
+            return Err(ConfigError::Window {
+                window: self.window,
+                min,
+                max: W,
+            });
         }
         crate::library::Library::<P>::new(&self.library)?;
         if self.library.harmonics > 0 && !(self.omega.is_finite() && self.omega > 0.0) {
             return Err(ConfigError::Omega(self.omega));
         }
-        if let Some(m) = self.memory {
-            if !(m > 0.0) {
-                return Err(ConfigError::Memory(m));
-            }
+        if let Some(m) = self.memory
+            && !(m > 0.0)
+        {
+            return Err(ConfigError::Memory(m));
         }
         if self.screening_period == 0 {
             return Err(ConfigError::ScreeningPeriod);

@@ -17,7 +17,7 @@
 use crate::real::Real;
 
 /// The highest supported polynomial degree.
-pub const MAX_DEGREE: usize = 8;
+pub const MAX_DEGREE: usize = 10;
 
 /// Why taps cannot be designed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,10 +42,18 @@ impl core::fmt::Display for TapsError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             TapsError::Window { window, min, max } => {
-                write!(f, "window is {window} samples, but it must be between {min} and {max}")
+                write!(
+                    f,
+                    "window is {window} samples, but it must be between {min} and {max}"
+                )
             }
-            TapsError::Degree(d) => write!(f, "derivative_degree is {d}, but it must be between 2 and {MAX_DEGREE}"),
-            TapsError::SamplePeriod => f.write_str("sample_period must be a positive number of seconds"),
+            TapsError::Degree(d) => write!(
+                f,
+                "derivative_degree is {d}, but it must be between 2 and {MAX_DEGREE}"
+            ),
+            TapsError::SamplePeriod => {
+                f.write_str("sample_period must be a positive number of seconds")
+            }
         }
     }
 }
@@ -66,7 +74,11 @@ impl<T: Real, const W: usize> Taps<T, W> {
             return Err(TapsError::Degree(degree));
         }
         if len < degree + 3 || len > W {
-            return Err(TapsError::Window { window: len, min: degree + 3, max: W });
+            return Err(TapsError::Window {
+                window: len,
+                min: degree + 3,
+                max: W,
+            });
         }
         if !(dt.is_finite() && dt > 0.0) {
             return Err(TapsError::SamplePeriod);
@@ -77,7 +89,7 @@ impl<T: Real, const W: usize> Taps<T, W> {
         let mut gram = [[0.0f64; MAX_DEGREE + 1]; MAX_DEGREE + 1];
         for k in 0..len {
             let u = (k as f64 - half) / half;
-            let mut powers = [1.0f64; 2 * MAX_DEGREE + 1];
+            let mut powers = [1.0f64; 2 * MAX_DEGREE + 2];
             for j in 1..2 * m {
                 powers[j] = powers[j - 1] * u;
             }
@@ -220,7 +232,9 @@ mod tests {
         let dt = 0.001;
         let taps: Taps<f64, 512> = Taps::design(257, 5, dt).unwrap();
         let w = 2.0;
-        let x: std::vec::Vec<f64> = (0..257).map(|k| (w * (k as f64 - 128.0) * dt + 0.3).sin()).collect();
+        let x: std::vec::Vec<f64> = (0..257)
+            .map(|k| (w * (k as f64 - 128.0) * dt + 0.3).sin())
+            .collect();
         assert!((taps.apply(0, &x, &[]) - 0.3f64.sin()).abs() < 1e-7);
         assert!((taps.apply(1, &x, &[]) - w * 0.3f64.cos()).abs() < 1e-6);
         assert!((taps.apply(2, &x, &[]) + w * w * 0.3f64.sin()).abs() < 1e-4);
@@ -228,9 +242,21 @@ mod tests {
 
     #[test]
     fn bad_designs_are_errors() {
-        assert!(matches!(Taps::<f32, 64>::design(65, 4, 0.01), Err(TapsError::Window { .. })));
-        assert!(matches!(Taps::<f32, 64>::design(5, 4, 0.01), Err(TapsError::Window { .. })));
-        assert!(matches!(Taps::<f32, 64>::design(33, 1, 0.01), Err(TapsError::Degree(1))));
-        assert!(matches!(Taps::<f32, 64>::design(33, 4, 0.0), Err(TapsError::SamplePeriod)));
+        assert!(matches!(
+            Taps::<f32, 64>::design(65, 4, 0.01),
+            Err(TapsError::Window { .. })
+        ));
+        assert!(matches!(
+            Taps::<f32, 64>::design(5, 4, 0.01),
+            Err(TapsError::Window { .. })
+        ));
+        assert!(matches!(
+            Taps::<f32, 64>::design(33, 1, 0.01),
+            Err(TapsError::Degree(1))
+        ));
+        assert!(matches!(
+            Taps::<f32, 64>::design(33, 4, 0.0),
+            Err(TapsError::SamplePeriod)
+        ));
     }
 }

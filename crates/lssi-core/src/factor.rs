@@ -37,7 +37,12 @@ struct Rotation<T> {
 #[inline]
 fn givens<T: Real>(a: T, b: T) -> Rotation<T> {
     if b == T::ZERO {
-        return Rotation { c: T::ONE, s: T::ZERO, delta: T::ZERO, r: a };
+        return Rotation {
+            c: T::ONE,
+            s: T::ZERO,
+            delta: T::ZERO,
+            r: a,
+        };
     }
     let (aa, ab) = (a.abs(), b.abs());
     // Scale by the larger magnitude so the squares neither overflow nor underflow in f32.
@@ -49,10 +54,20 @@ fn givens<T: Real>(a: T, b: T) -> Rotation<T> {
         let grow = b / (hyp + a) * b;
         let r = a + grow;
         let delta = grow / r;
-        Rotation { c: a / r, s: b / r, delta, r }
+        Rotation {
+            c: a / r,
+            s: b / r,
+            delta,
+            r,
+        }
     } else {
         let c = a / hyp;
-        Rotation { c, s: b / hyp, delta: T::ONE - c, r: hyp }
+        Rotation {
+            c,
+            s: b / hyp,
+            delta: T::ONE - c,
+            r: hyp,
+        }
     }
 }
 
@@ -67,7 +82,13 @@ impl<T: Real> Rotation<T> {
 impl<T: Real, const P: usize> Factor<T, P> {
     /// An empty factor over `n` columns (`n` is clamped to `P`).
     pub fn new(n: usize) -> Self {
-        Self { n: n.min(P), r: [[T::ZERO; P]; P], z: [T::ZERO; P], rho2: T::ZERO, weight: T::ZERO }
+        Self {
+            n: n.min(P),
+            r: [[T::ZERO; P]; P],
+            z: [T::ZERO; P],
+            rho2: T::ZERO,
+            weight: T::ZERO,
+        }
     }
 
     /// Number of columns.
@@ -294,7 +315,12 @@ impl<T: Real, const P: usize> Factor<T, P> {
 
 /// Triangularises the first `n` columns of an `rows × n` matrix by Givens rotations, applying
 /// them to `z` as well.
-fn triangularise<T: Real, const P: usize>(c: &mut [[T; P]; P], z: &mut [T; P], rows: usize, n: usize) {
+fn triangularise<T: Real, const P: usize>(
+    c: &mut [[T; P]; P],
+    z: &mut [T; P],
+    rows: usize,
+    n: usize,
+) {
     for p in 0..n {
         for i in p + 1..rows {
             if c[i][p] == T::ZERO {
@@ -349,7 +375,12 @@ mod tests {
         let mut xi = [0.0; 4];
         assert_eq!(f.solve(0b1111, &mut xi), 0b1111);
         for j in 0..4 {
-            assert!((xi[j] - reference[j]).abs() < 1e-10, "{j}: {} vs {}", xi[j], reference[j]);
+            assert!(
+                (xi[j] - reference[j]).abs() < 1e-10,
+                "{j}: {} vs {}",
+                xi[j],
+                reference[j]
+            );
         }
         let residual = (&a * &reference - &b).norm_squared();
         assert!((f.error(&xi) - residual).abs() < 1e-10 * residual.max(1.0));
@@ -394,7 +425,11 @@ mod tests {
         let mut odd: Factor<f64, 4> = Factor::new(4);
         for (i, (row, y)) in data.iter().enumerate() {
             all.update(row, *y, 1.0);
-            if i % 2 == 0 { even.update(row, *y, 1.0) } else { odd.update(row, *y, 1.0) }
+            if i % 2 == 0 {
+                even.update(row, *y, 1.0)
+            } else {
+                odd.update(row, *y, 1.0)
+            }
         }
         even.merge(&odd);
         let (mut a, mut b) = ([0.0; 4], [0.0; 4]);
@@ -442,7 +477,12 @@ mod tests {
         let mut s = 3u64;
         let lambda = 0.9999f32;
         for _ in 0..1_000_000 {
-            let row = [1.0f32, noise(&mut s) as f32, noise(&mut s) as f32 * 3.0, noise(&mut s) as f32];
+            let row = [
+                1.0f32,
+                noise(&mut s) as f32,
+                noise(&mut s) as f32 * 3.0,
+                noise(&mut s) as f32,
+            ];
             let y = 0.5 - 2.0 * row[1] + 0.25 * row[2] + 0.01 * noise(&mut s) as f32;
             f.update(&row, y, lambda.sqrt());
         }
@@ -453,14 +493,22 @@ mod tests {
         let mut g: Factor<f64, 4> = Factor::new(4);
         let mut s = 3u64;
         for _ in 0..1_000_000 {
-            let row = [1.0f32, noise(&mut s) as f32, noise(&mut s) as f32 * 3.0, noise(&mut s) as f32];
+            let row = [
+                1.0f32,
+                noise(&mut s) as f32,
+                noise(&mut s) as f32 * 3.0,
+                noise(&mut s) as f32,
+            ];
             let y = 0.5 - 2.0 * row[1] + 0.25 * row[2] + 0.01 * noise(&mut s) as f32;
             g.update(&row.map(f64::from), f64::from(y), (lambda as f64).sqrt());
         }
         let mut reference = [0.0f64; 4];
         g.solve(0b1111, &mut reference);
         for j in 0..4 {
-            assert!((f64::from(xi[j]) - reference[j]).abs() < 2e-4, "{j}: {xi:?} vs {reference:?}");
+            assert!(
+                (f64::from(xi[j]) - reference[j]).abs() < 2e-4,
+                "{j}: {xi:?} vs {reference:?}"
+            );
         }
     }
 }

@@ -169,13 +169,23 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     pub fn new(config: Config) -> Result<Self, crate::ConfigError> {
         config.validate::<W, P>()?;
         let library = Library::new(&config.library)?;
-        let taps = Taps::design(config.window, usize::from(config.derivative_degree), config.sample_period)
-            .map_err(|_| crate::ConfigError::Window { window: config.window, min: 0, max: W })?;
+        let taps = Taps::design(
+            config.window,
+            usize::from(config.derivative_degree),
+            config.sample_period,
+        )
+        .map_err(|_| crate::ConfigError::Window {
+            window: config.window,
+            min: 0,
+            max: W,
+        })?;
         let n = library.len();
         let stride = usize::from(config.row_stride);
         let block_len = (2 * config.window / stride).max(16) as u64;
         let row_period = config.sample_period * f64::from(config.row_stride);
-        let lambda = config.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
+        let lambda = config
+            .memory
+            .map_or(1.0, |tau| libm::exp(-row_period / tau));
         Ok(Self {
             config,
             library,
@@ -241,7 +251,11 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
 
     /// Samples between a sample arriving and its regression row (the fixed lag).
     pub fn lag_samples(&self) -> usize {
-        let smoothing = if self.config.smoothing { KnnSmoother::<T>::LAG * usize::from(self.config.row_stride) } else { 0 };
+        let smoothing = if self.config.smoothing {
+            KnnSmoother::<T>::LAG * usize::from(self.config.row_stride)
+        } else {
+            0
+        };
         (self.config.window - 1) / 2 + smoothing
     }
 
@@ -259,11 +273,11 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             return Err(r);
         }
         let dt = self.config.sample_period;
-        if let Some(last) = self.last_t {
-            if sample.t - last > 1.5 * dt {
-                self.restart();
-                self.counters.gaps += 1;
-            }
+        if let Some(last) = self.last_t
+            && sample.t - last > 1.5 * dt
+        {
+            self.restart();
+            self.counters.gaps += 1;
         }
         self.last_t = Some(sample.t);
         self.counters.accepted += 1;
@@ -302,10 +316,10 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         if values.iter().flatten().any(|v| v.abs().to_f64() > limit) {
             return Err(Rejection::OutOfRange);
         }
-        if let Some(last) = self.last_t {
-            if s.t - last < 0.5 * self.config.sample_period {
-                return Err(Rejection::OutOfOrder);
-            }
+        if let Some(last) = self.last_t
+            && s.t - last < 0.5 * self.config.sample_period
+        {
+            return Err(Rejection::OutOfOrder);
         }
         Ok(())
     }
@@ -364,7 +378,13 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                 _ => return,
             }
         } else {
-            Row { x: x_hat, v: v_hat, y: y_hat, u: u_hat, t: t_centre }
+            Row {
+                x: x_hat,
+                v: v_hat,
+                y: y_hat,
+                u: u_hat,
+                t: t_centre,
+            }
         };
         // The excitation gate.
         let v2 = row.v * row.v;
@@ -406,12 +426,18 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let count = T::from_usize(self.warmup.len().max(1));
         let rms = sums.map(|s| {
             let r = (s / count).sqrt();
-            if r > T::ZERO && r.is_finite() { r } else { T::ONE }
+            if r > T::ZERO && r.is_finite() {
+                r
+            } else {
+                T::ONE
+            }
         });
         let (sx, sv, su, sy) = (rms[0], rms[1], rms[2], rms[3]);
         for (j, term) in self.library.terms().iter().enumerate() {
             let d = match *term {
-                Term::Monomial { px, pv } => crate::library::powi(sx, px) * crate::library::powi(sv, pv),
+                Term::Monomial { px, pv } => {
+                    crate::library::powi(sx, px) * crate::library::powi(sv, pv)
+                }
                 Term::Input => su,
                 _ => T::ONE,
             };
@@ -437,9 +463,13 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         // single rows, whose relative size 1/n falls below f32's rounding after ~10⁵ rows.
         self.block.update(&theta, y, self.sqrt_lambda);
         self.counters.rows += 1;
-        if self.counters.rows % self.block_len == 0 {
+        if self.counters.rows.is_multiple_of(self.block_len) {
             let parity = (self.counters.rows / self.block_len) % 2;
-            let factor = if parity == 1 { &mut self.a } else { &mut self.b };
+            let factor = if parity == 1 {
+                &mut self.a
+            } else {
+                &mut self.b
+            };
             factor.forget(self.sqrt_lambda_blocks);
             factor.merge(&self.block);
             self.block.clear();
@@ -451,7 +481,11 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let (mut a, mut b) = (self.a.clone(), self.b.clone());
         if self.block.weight() > T::ZERO {
             let parity = (self.counters.rows / self.block_len) % 2;
-            if parity == 0 { a.merge(&self.block) } else { b.merge(&self.block) }
+            if parity == 0 {
+                a.merge(&self.block)
+            } else {
+                b.merge(&self.block)
+            }
         }
         (a, b)
     }
@@ -481,27 +515,41 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let mut all = a.clone();
         all.merge(&b);
         // Candidate origins for x: the equilibria of the unforced dense model near the data.
+        // Candidate origins: the recording's own, and the equilibria of the unforced dense
+        // model near the data. The sparsest selected model decides; among equally sparse ones
+        // the least held-out error (a noisy constant term can misplace an equilibrium).
         let mut candidates: heapless::Vec<T, 6> = heapless::Vec::new();
         let _ = candidates.push(T::ZERO);
         if offsets && x_closed {
             self.equilibria(&all, &mut candidates);
         }
         let mut best: Option<(u32, T, T, screen::Sweep<T, P>)> = None;
-        for &c in candidates.iter() {
-            let result = if c == T::ZERO {
-                screen::sweep(&a, &b, &all, grid, parsimony)
-            } else {
-                let m = self.shift(c, T::ZERO);
-                let (mut a2, mut b2, mut all2) = (a.clone(), b.clone(), all.clone());
-                a2.transform(&m);
-                b2.transform(&m);
-                all2.transform(&m);
-                screen::sweep(&a2, &b2, &all2, grid, parsimony)
+        for &start in candidates.iter() {
+            // Refine the origin on the sparse model: the dense model's constant term is
+            // poorly determined (it is nearly collinear with the even powers), the sparse
+            // support's is not. Two passes move the origin to the sparse model's equilibrium.
+            let mut c = start;
+            let mut result = self.sweep_at(&a, &b, &all, c, grid, parsimony);
+            if offsets && x_closed && start != T::ZERO {
+                for _ in 0..2 {
+                    let Some(selected) = result.solutions.get(result.selected).copied() else {
+                        break;
+                    };
+                    let Some(step) = self.refine_origin(&all, c, selected.support) else {
+                        break;
+                    };
+                    c += step;
+                    result = self.sweep_at(&a, &b, &all, c, grid, parsimony);
+                }
+            }
+            let Some(selected) = result.solutions.get(result.selected).copied() else {
+                continue;
             };
-            let Some(selected) = result.solutions.get(result.selected).copied() else { continue };
             let better = match &best {
                 None => true,
-                Some((len, err, _, _)) => selected.len() < *len || (selected.len() == *len && selected.mean_error < *err),
+                Some((len, err, _, _)) => {
+                    selected.len() < *len || (selected.len() == *len && selected.mean_error < *err)
+                }
             };
             if better {
                 best = Some((selected.len(), selected.mean_error, c, result));
@@ -510,7 +558,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let keep = T::from_f64(0.5);
         self.smooth_x.choose_k(keep);
         self.smooth_v.choose_k(keep);
-        let Some((_, _, offset_x, sweep)) = best else { return false };
+        let Some((_, _, offset_x, sweep)) = best else {
+            return false;
+        };
         let mut coefficients = [T::ZERO; P];
         for j in 0..n {
             coefficients[j] = sweep.coefficients[j] * self.y_scale / self.scales[j];
@@ -518,13 +568,22 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let y2 = self.y_scale * self.y_scale;
         let mut solutions: heapless::Vec<Solution<T>, MAX_SOLUTIONS> = heapless::Vec::new();
         for s in sweep.solutions.iter() {
-            let _ = solutions.push(Solution { mean_error: s.mean_error * y2, ..*s });
+            let _ = solutions.push(Solution {
+                mean_error: s.mean_error * y2,
+                ..*s
+            });
         }
         let mut terms = heapless::Vec::new();
         for &t in self.library.terms() {
             let _ = terms.push(t);
         }
-        let k = |s: &KnnSmoother<T>| if self.config.smoothing { s.k() as u8 } else { 0 };
+        let k = |s: &KnnSmoother<T>| {
+            if self.config.smoothing {
+                s.k() as u8
+            } else {
+                0
+            }
+        };
         self.model = Some(Model {
             terms,
             coefficients,
@@ -539,6 +598,68 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             rows: self.counters.rows,
         });
         true
+    }
+
+    /// The sweep with the x origin moved by `c`.
+    fn sweep_at(
+        &self,
+        a: &Factor<T, P>,
+        b: &Factor<T, P>,
+        all: &Factor<T, P>,
+        c: T,
+        grid: usize,
+        parsimony: T,
+    ) -> screen::Sweep<T, P> {
+        if c == T::ZERO {
+            return screen::sweep(a, b, all, grid, parsimony);
+        }
+        let m = self.shift(c, T::ZERO);
+        let (mut a2, mut b2, mut all2) = (a.clone(), b.clone(), all.clone());
+        a2.transform(&m);
+        b2.transform(&m);
+        all2.transform(&m);
+        screen::sweep(&a2, &b2, &all2, grid, parsimony)
+    }
+
+    /// With the origin at `c`: the equilibrium, nearest 0, of the model on `support` and the
+    /// columns an x-shift of it needs. Returns the step to it, if Newton's method converges.
+    fn refine_origin(&self, all: &Factor<T, P>, c: T, support: u32) -> Option<T> {
+        let m = self.shift(c, T::ZERO);
+        let mut shifted = all.clone();
+        shifted.transform(&m);
+        let closure = self.library.x_shift_closure(support);
+        let mut xi = [T::ZERO; P];
+        shifted.solve(closure, &mut xi);
+        let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
+        for (j, term) in self.library.terms().iter().enumerate() {
+            let value = (xi[j] * self.y_scale / self.scales[j]).to_f64();
+            match *term {
+                Term::Constant => poly[0] = value,
+                Term::Monomial { px, pv: 0 } => poly[usize::from(px)] = value,
+                _ => {}
+            }
+        }
+        let span = (self.x_max - self.x_min).to_f64().abs();
+        let mut x = 0.0f64;
+        for _ in 0..30 {
+            let (mut p, mut dp) = (0.0, 0.0);
+            for &coefficient in poly.iter().rev() {
+                dp = dp * x + p;
+                p = p * x + coefficient;
+            }
+            if dp == 0.0 || !dp.is_finite() {
+                return None;
+            }
+            let step = p / dp;
+            x -= step;
+            if libm::fabs(x) > span {
+                return None;
+            }
+            if libm::fabs(step) <= 1e-12 * span.max(1e-300) {
+                break;
+            }
+        }
+        Some(T::from_f64(x))
     }
 
     /// The column map (scaled) that moves the origin of x and v by (cx, cv): the new columns

@@ -20,6 +20,7 @@ pub mod model;
 pub mod real;
 mod screen;
 pub mod smoothing;
+pub mod tuning;
 
 pub use config::{Channels, Config, ConfigError};
 pub use identifier::{Counters, Identifier, Rejection, Sample};

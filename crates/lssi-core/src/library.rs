@@ -65,7 +65,11 @@ impl Term {
                 Ok(())
             }
             Term::Sin(k) | Term::Cos(k) => {
-                let name = if matches!(self, Term::Sin(_)) { "sin" } else { "cos" };
+                let name = if matches!(self, Term::Sin(_)) {
+                    "sin"
+                } else {
+                    "cos"
+                };
                 out.write_str(name)?;
                 out.write_str("(")?;
                 write_frequency(out, f64::from(k) * omega)?;
@@ -158,7 +162,13 @@ pub struct LibraryConfig {
 
 impl Default for LibraryConfig {
     fn default() -> Self {
-        Self { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 1, input: false }
+        Self {
+            poly_order: 3,
+            family: PolyFamily::All,
+            constant: true,
+            harmonics: 1,
+            input: false,
+        }
     }
 }
 
@@ -183,10 +193,16 @@ impl fmt::Display for LibraryError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LibraryError::PolyOrder(p) => {
-                write!(f, "library.poly_order is {p}, but it must be between 1 and {MAX_POLY_ORDER}")
+                write!(
+                    f,
+                    "library.poly_order is {p}, but it must be between 1 and {MAX_POLY_ORDER}"
+                )
             }
             LibraryError::Harmonics(h) => {
-                write!(f, "library.harmonics is {h}, but at most {MAX_HARMONICS} are supported")
+                write!(
+                    f,
+                    "library.harmonics is {h}, but at most {MAX_HARMONICS} are supported"
+                )
             }
             LibraryError::TooManyTerms { wanted, capacity } => write!(
                 f,
@@ -242,12 +258,17 @@ impl<const P: usize> Library<P> {
         if config.input {
             push(Term::Input);
         }
-        Ok(Self { terms, config: *config })
+        Ok(Self {
+            terms,
+            config: *config,
+        })
     }
 
     /// The number of terms a configuration asks for.
     pub fn count(config: &LibraryConfig) -> usize {
-        let mut n = usize::from(config.constant) + 2 * usize::from(config.harmonics) + usize::from(config.input);
+        let mut n = usize::from(config.constant)
+            + 2 * usize::from(config.harmonics)
+            + usize::from(config.input);
         for degree in 1..=config.poly_order.min(MAX_POLY_ORDER) {
             for pv in 0..=degree {
                 if Self::admits(config.family, degree - pv, pv) {
@@ -262,7 +283,9 @@ impl<const P: usize> Library<P> {
         match family {
             PolyFamily::All => true,
             PolyFamily::Families => pv == 0 || pv == 1,
-            PolyFamily::OddFamilies => (pv == 0 && px % 2 == 1) || (pv == 1 && px % 2 == 0),
+            PolyFamily::OddFamilies => {
+                (pv == 0 && px % 2 == 1) || (pv == 1 && px.is_multiple_of(2))
+            }
         }
     }
 
@@ -352,6 +375,30 @@ impl<const P: usize> Library<P> {
         (x_closed, v_closed)
     }
 
+    /// The columns a shift of x can produce from the columns in `support`: every lower power
+    /// of x beside each monomial, the constant included.
+    pub fn x_shift_closure(&self, support: u32) -> u32 {
+        let mut closure = support;
+        for (j, term) in self.terms.iter().enumerate() {
+            if support & (1 << j) == 0 {
+                continue;
+            }
+            if let Term::Monomial { px, pv } = *term {
+                for i in 0..px {
+                    let column = if i == 0 && pv == 0 {
+                        self.index_of(Term::Constant)
+                    } else {
+                        self.index_of(Term::Monomial { px: i, pv })
+                    };
+                    if let Some(c) = column {
+                        closure |= 1 << c;
+                    }
+                }
+            }
+        }
+        closure
+    }
+
     /// Writes M(cx, cv), the matrix with θ(x + cx, v + cv) = M θ(x, v), into `m` (row-major,
     /// stride `P`). Only meaningful when [`Library::shift_closed`] holds for the shifted
     /// channels; entries that would fall outside the library are dropped.
@@ -435,18 +482,33 @@ mod tests {
 
     #[test]
     fn paper_eq18_library_has_sixteen_terms() {
-        let config = LibraryConfig { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 3, input: false };
+        let config = LibraryConfig {
+            poly_order: 3,
+            family: PolyFamily::All,
+            constant: true,
+            harmonics: 3,
+            input: false,
+        };
         let library: Library<24> = Library::new(&config).unwrap();
         assert_eq!(library.len(), 16);
         assert_eq!(library.shift_closed(), (true, true));
-        let odd = LibraryConfig { family: PolyFamily::OddFamilies, ..config };
+        let odd = LibraryConfig {
+            family: PolyFamily::OddFamilies,
+            ..config
+        };
         let library: Library<24> = Library::new(&odd).unwrap();
-        assert_eq!(library.shift_closed().0, false);
+        assert!(!library.shift_closed().0);
     }
 
     #[test]
     fn capacity_is_checked() {
-        let config = LibraryConfig { poly_order: 9, family: PolyFamily::All, constant: true, harmonics: 3, input: true };
+        let config = LibraryConfig {
+            poly_order: 9,
+            family: PolyFamily::All,
+            constant: true,
+            harmonics: 3,
+            input: true,
+        };
         let err = Library::<16>::new(&config).unwrap_err();
         assert!(matches!(err, LibraryError::TooManyTerms { .. }));
         assert!(err.to_string().contains("terms"));
@@ -454,7 +516,13 @@ mod tests {
 
     #[test]
     fn shift_matrix_moves_the_origin() {
-        let config = LibraryConfig { poly_order: 3, family: PolyFamily::All, constant: true, harmonics: 1, input: false };
+        let config = LibraryConfig {
+            poly_order: 3,
+            family: PolyFamily::All,
+            constant: true,
+            harmonics: 1,
+            input: false,
+        };
         let library: Library<16> = Library::new(&config).unwrap();
         let (x, v, cx, cv) = (0.7f64, -0.3f64, 0.25f64, -0.1f64);
         let mut m = [[0.0; 16]; 16];
@@ -471,7 +539,13 @@ mod tests {
 
     #[test]
     fn harmonics_by_recurrence_match_libm() {
-        let config = LibraryConfig { poly_order: 1, family: PolyFamily::All, constant: false, harmonics: 5, input: false };
+        let config = LibraryConfig {
+            poly_order: 1,
+            family: PolyFamily::All,
+            constant: false,
+            harmonics: 5,
+            input: false,
+        };
         let library: Library<16> = Library::new(&config).unwrap();
         let mut row = [0.0f64; 16];
         library.evaluate(0.0, 0.0, 1.3, 0.0, &mut row);

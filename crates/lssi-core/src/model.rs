@@ -61,7 +61,10 @@ pub struct Model<T, const P: usize> {
 impl<T: Real, const P: usize> Model<T, P> {
     /// The coefficient of a term, if the library has it.
     pub fn coefficient(&self, term: Term) -> Option<T> {
-        self.terms.iter().position(|&t| t == term).and_then(|i| self.coefficients.get(i).copied())
+        self.terms
+            .iter()
+            .position(|&t| t == term)
+            .and_then(|i| self.coefficients.get(i).copied())
     }
 
     /// The selected solution.
@@ -70,7 +73,10 @@ impl<T: Real, const P: usize> Model<T, P> {
     }
 
     fn linear(&self) -> (f64, f64) {
-        let get = |px| self.coefficient(Term::Monomial { px, pv: 0 }).map_or(0.0, |c| c.to_f64());
+        let get = |px| {
+            self.coefficient(Term::Monomial { px, pv: 0 })
+                .map_or(0.0, |c| c.to_f64())
+        };
         (get(1), get(3))
     }
 
@@ -89,6 +95,7 @@ impl<T: Real, const P: usize> Model<T, P> {
 
     /// For a double well: the small-oscillation frequency inside a well, √(2ξ_x)/2π in Hz.
     pub fn well_resonance_hz(&self) -> Option<f64> {
-        self.wells().map(|_| libm::sqrt(2.0 * self.linear().0) / (2.0 * core::f64::consts::PI))
+        self.wells()
+            .map(|_| libm::sqrt(2.0 * self.linear().0) / (2.0 * core::f64::consts::PI))
     }
 }

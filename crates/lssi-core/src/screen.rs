@@ -31,14 +31,30 @@ pub(crate) struct Sweep<T, const P: usize> {
 }
 
 /// |ξ_j|·‖θ_j‖/‖y‖ for the columns in `support`.
-fn scaled<T: Real, const P: usize>(xi: &[T; P], norms: &[T; P], y_norm: T, n: usize, out: &mut [T; P]) {
+fn scaled<T: Real, const P: usize>(
+    xi: &[T; P],
+    norms: &[T; P],
+    y_norm: T,
+    n: usize,
+    out: &mut [T; P],
+) {
     for j in 0..n {
-        out[j] = if y_norm > T::ZERO { xi[j].abs() * norms[j] / y_norm } else { xi[j].abs() };
+        out[j] = if y_norm > T::ZERO {
+            xi[j].abs() * norms[j] / y_norm
+        } else {
+            xi[j].abs()
+        };
     }
 }
 
 /// Sequential thresholding at `threshold`, starting from the columns in `start`.
-fn stlsq<T: Real, const P: usize>(all: &Factor<T, P>, norms: &[T; P], y_norm: T, start: u32, threshold: T) -> u32 {
+fn stlsq<T: Real, const P: usize>(
+    all: &Factor<T, P>,
+    norms: &[T; P],
+    y_norm: T,
+    start: u32,
+    threshold: T,
+) -> u32 {
     let n = all.columns();
     let mut support = start;
     let mut xi = [T::ZERO; P];
@@ -73,7 +89,11 @@ fn held_out<T: Real, const P: usize>(a: &Factor<T, P>, b: &Factor<T, P>, support
         total += test.error(&xi) / test.weight();
         parts += T::ONE;
     }
-    if parts > T::ZERO { total / parts } else { T::MAX }
+    if parts > T::ZERO {
+        total / parts
+    } else {
+        T::MAX
+    }
 }
 
 /// Runs the sweep and MES over factors `a`, `b` and their union `all` (same columns).
@@ -130,7 +150,14 @@ pub(crate) fn sweep<T: Real, const P: usize>(
             continue;
         }
         let mean_error = held_out(a, b, support);
-        if solutions.push(Solution { threshold, mean_error, support }).is_err() {
+        if solutions
+            .push(Solution {
+                threshold,
+                mean_error,
+                support,
+            })
+            .is_err()
+        {
             break;
         }
     }
@@ -142,7 +169,10 @@ pub(crate) fn sweep<T: Real, const P: usize>(
         for s in solutions.iter() {
             least = least.min(s.mean_error);
         }
-        let bound = least * (T::ONE + parsimony);
+        // An absolute floor too: differences below 10⁻⁶ of the target's mean square are
+        // rounding, not information (a noise-free record would otherwise keep every term).
+        let floor = y_norm * y_norm / all.weight().max(T::ONE) * T::from_f64(1e-6);
+        let bound = least * (T::ONE + parsimony) + floor;
         let mut best: Option<(u32, T, usize)> = None;
         for (i, s) in solutions.iter().enumerate() {
             if s.mean_error <= bound {
@@ -163,5 +193,9 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     if let Some(s) = solutions.get(selected) {
         all.solve(s.support, &mut coefficients);
     }
-    Sweep { solutions, selected, coefficients }
+    Sweep {
+        solutions,
+        selected,
+        coefficients,
+    }
 }

@@ -145,7 +145,7 @@ impl<T: Real> KnnSmoother<T> {
             count += 1;
         }
         self.rows = self.rows.wrapping_add(1);
-        let evaluate = self.rows % EVALUATE_EVERY == 0;
+        let evaluate = self.rows.is_multiple_of(EVALUATE_EVERY);
         let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
         // Local Gram matrix Z (eq. 4) of the k_used nearest contexts.
         let mut diff = [[T::ZERO; 2]; MAX_NEIGHBOURS];
@@ -223,7 +223,11 @@ impl<T: Real> KnnSmoother<T> {
                 sum += w[a];
                 value += w[a] * values[a];
             }
-            if sum.abs() > T::EPSILON { value / sum } else { own }
+            if sum.abs() > T::EPSILON {
+                value / sum
+            } else {
+                own
+            }
         };
         if evaluate {
             let mut chosen = own;

@@ -1,0 +1,17 @@
+//! Board support for the lssi Cortex-M4F image: CMSDK UART0 driver, byte transport,
+//! per-call cost meter, stack painting, defmt transport, panic and fault handling.
+//!
+//! Built for `thumbv7em-none-eabihf` only; the reference board is QEMU's `mps2-an386`.
+//! The image itself is `src/main.rs`.
+
+#![no_std]
+// Volatile register and stack access is the only `unsafe`; each site opts in and says why.
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod cost;
+pub mod platform;
+pub mod stack;
+pub mod transport;
+pub mod uart;
+pub mod workload;

@@ -1,0 +1,207 @@
+//! Device → host messages.
+
+use crate::size::{max_of, vec_max_size};
+use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS};
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+/// A message from the device to the host.
+///
+/// The variant order is the wire discriminant (0..=5); see the README before changing it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no allocator to box into: a message is one fixed-size value"
+)]
+pub enum DeviceMsg {
+    /// Answers [`HostMsg::Hello`](crate::HostMsg::Hello) with the device's version and sizes.
+    ///
+    /// Frozen: this stays variant 0 with the version first in every protocol version.
+    HelloReply {
+        /// The device's [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
+        protocol_version: u16,
+        /// Library capacity the firmware was built with.
+        max_terms: u8,
+        /// Ring-buffer capacity in samples (the largest derivative window it accepts).
+        window_capacity: u16,
+        /// Most samples per batch the device takes.
+        max_batch: u16,
+    },
+    /// Batch `seq` was applied (or was a duplicate of one already applied).
+    Ack {
+        /// Sequence number of the batch.
+        seq: u32,
+    },
+    /// A frame or command was refused; nothing it carried was applied.
+    Nak {
+        /// The refused batch's sequence number when the device could read it, otherwise the
+        /// sequence number it expects next.
+        seq: u32,
+        /// Why.
+        reason: NakReason,
+    },
+    /// The current model.
+    Model(ModelSnapshot),
+    /// Counters that tell whether the device keeps up.
+    Health {
+        /// Samples applied since the last reset.
+        samples: u32,
+        /// Samples rejected (non-finite, out of order in time).
+        rejected: u32,
+        /// Samples waiting in the ring buffer.
+        buffer_fill: u16,
+        /// Mean per-sample cost, in `cost_unit`.
+        cost_mean: u32,
+        /// Largest per-sample cost, in `cost_unit`.
+        cost_max: u32,
+        /// Unit of `cost_mean` and `cost_max`.
+        cost_unit: CostUnit,
+        /// A counter the device's main loop bumps every pass; stuck means hung.
+        watchdog: u32,
+        /// Received frames dropped for a bad CRC or COBS.
+        crc_errors: u32,
+        /// Received frames that decoded.
+        frames_ok: u32,
+    },
+    /// Raw defmt frames, decoded on the host with the firmware's ELF.
+    Log {
+        /// The bytes, in the order the firmware's defmt logger produced them.
+        bytes: heapless::Vec<u8, MAX_LOG>,
+    },
+}
+
+impl MaxSize for DeviceMsg {
+    // The discriminant (one byte below 128 variants), then the largest variant.
+    const POSTCARD_MAX_SIZE: usize = 1 + max_of(&[
+        u16::POSTCARD_MAX_SIZE + u8::POSTCARD_MAX_SIZE + 2 * u16::POSTCARD_MAX_SIZE,
+        u32::POSTCARD_MAX_SIZE,
+        u32::POSTCARD_MAX_SIZE + NakReason::POSTCARD_MAX_SIZE,
+        ModelSnapshot::POSTCARD_MAX_SIZE,
+        7 * u32::POSTCARD_MAX_SIZE + u16::POSTCARD_MAX_SIZE + CostUnit::POSTCARD_MAX_SIZE,
+        vec_max_size::<u8>(MAX_LOG),
+    ]);
+}
+
+/// Why the device refused a frame or a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum NakReason {
+    /// The frame failed its CRC or COBS check.
+    Crc,
+    /// The frame passed its CRC but did not decode.
+    Decode,
+    /// The frame was longer than the device's receive buffer.
+    Overflow,
+    /// The batch's `seq` is ahead of the one expected (one was lost); resend from the nak's `seq`.
+    OutOfOrder,
+    /// Samples or a query arrived before any valid configuration.
+    NotConfigured,
+    /// The configuration was refused (out of range, or beyond the firmware's capacities).
+    BadConfig,
+    /// The device cannot take the batch now; resend it later.
+    Busy,
+    /// The host's protocol version is not the device's.
+    VersionMismatch,
+}
+
+/// Unit of the per-sample cost in [`DeviceMsg::Health`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CostUnit {
+    /// Instructions retired (QEMU's instruction counter).
+    Instructions,
+    /// CPU cycles (the Cortex-M DWT cycle counter).
+    Cycles,
+    /// Ticks of a device timer.
+    Ticks,
+    /// Nanoseconds of wall time (a host-side simulation).
+    Nanoseconds,
+}
+
+/// What a library term is; see [`TermCode`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TermKind {
+    /// The constant 1.
+    Constant,
+    /// x^a · v^b.
+    Monomial,
+    /// sin(a Ω t).
+    Sin,
+    /// cos(a Ω t).
+    Cos,
+    /// The measured excitation u.
+    Input,
+}
+
+/// One library term, flat: a monomial's powers or a harmonic's number in `a` and `b`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TermCode {
+    /// What the term is.
+    pub kind: TermKind,
+    /// [`TermKind::Monomial`]: power of x. [`TermKind::Sin`]/[`TermKind::Cos`]: harmonic k.
+    /// Otherwise 0.
+    pub a: u8,
+    /// [`TermKind::Monomial`]: power of v. Otherwise 0.
+    pub b: u8,
+}
+
+/// One of the candidate solutions S_1..S_n of a threshold sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SolutionSummary {
+    /// Threshold on the scaled coefficients that produced it.
+    pub threshold: f32,
+    /// Its mean error on held-out samples (the paper's eq. 15).
+    pub mean_error: f32,
+    /// Bit i set: term i of [`ModelSnapshot::terms`] is in the solution.
+    pub support: u32,
+}
+
+/// The identifier's current model: the library, the selected solution's coefficients and
+/// every candidate with its mean error.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ModelSnapshot {
+    /// The library, in column order.
+    pub terms: heapless::Vec<TermCode, MAX_TERMS>,
+    /// Coefficients of the selected solution in physical units, one per term (0 if inactive).
+    pub coefficients: heapless::Vec<f32, MAX_TERMS>,
+    /// The candidate solutions of the last sweep.
+    pub solutions: heapless::Vec<SolutionSummary, MAX_SOLUTIONS>,
+    /// Index into `solutions` of the one MES selected.
+    pub selected: u8,
+    /// Neighbours K of the smoothing of x.
+    pub k_x: u8,
+    /// Neighbours K of the smoothing of v.
+    pub k_v: u8,
+    /// Base angular frequency Ω in rad/s (configured or estimated).
+    pub omega: f32,
+    /// Linearised resonance in Hz, when the stiffness makes one.
+    pub resonance_hz: Option<f32>,
+    /// Position ± of the wells, when the model is bistable.
+    pub wells: Option<f32>,
+    /// Estimated sensor offset of x, removed before fitting.
+    pub offset_x: f32,
+    /// Estimated offset of v, removed before fitting.
+    pub offset_v: f32,
+    /// Samples the model has seen.
+    pub samples: u32,
+    /// Samples rejected.
+    pub rejected: u32,
+}
+
+impl MaxSize for ModelSnapshot {
+    const POSTCARD_MAX_SIZE: usize = vec_max_size::<TermCode>(MAX_TERMS)
+        + vec_max_size::<f32>(MAX_TERMS)
+        + vec_max_size::<SolutionSummary>(MAX_SOLUTIONS)
+        + u8::POSTCARD_MAX_SIZE // selected
+        + u8::POSTCARD_MAX_SIZE // k_x
+        + u8::POSTCARD_MAX_SIZE // k_v
+        + f32::POSTCARD_MAX_SIZE
+        + 2 * <Option<f32>>::POSTCARD_MAX_SIZE
+        + 2 * f32::POSTCARD_MAX_SIZE
+        + 2 * u32::POSTCARD_MAX_SIZE;
+}

@@ -1,0 +1,84 @@
+//! Host → device messages.
+
+use crate::SampleBatch;
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+/// A message from the host to the device.
+///
+/// The variant order is the wire discriminant (0..=4); see the README before changing it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no allocator to box into: a message is one fixed-size value"
+)]
+pub enum HostMsg {
+    /// Opens the session. The device answers [`DeviceMsg::HelloReply`](crate::DeviceMsg).
+    ///
+    /// Frozen: this stays variant 0 with the version first in every protocol version.
+    Hello {
+        /// The host's [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
+        protocol_version: u16,
+    },
+    /// Sets up (or replaces) the identifier; the device acks or naks `BadConfig`.
+    Configure(WireConfig),
+    /// Samples to run through the identifier, applied exactly once in `seq` order.
+    Samples(SampleBatch),
+    /// Asks for the current [`ModelSnapshot`](crate::ModelSnapshot) and health counters.
+    Query,
+    /// Drops the identifier's state; the configuration stays.
+    Reset,
+}
+
+/// Which monomials of (x, v) enter the library (the names of `lssi_core::PolyFamily`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PolyFamily {
+    /// Every monomial x^a v^b with 1 ≤ a + b ≤ `poly_order`.
+    All,
+    /// The families x^k and x^(k-1)·v, k = 1..=`poly_order`.
+    Families,
+    /// The families x^k and x^(k-1)·v for odd k only (the paper's Table 7).
+    OddFamilies,
+}
+
+/// The identifier's configuration as the host sends it.
+///
+/// A plain record: the device validates it once, when it builds the identifier, and naks
+/// [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it cannot. New fields go at
+/// the end (and bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION)).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireConfig {
+    /// Nominal sample period in seconds (samples carry their own exact times).
+    pub sample_period_s: f64,
+    /// Window of the local derivative estimate, in samples.
+    pub window: u16,
+    /// Highest total order of the (x, v) monomials.
+    pub poly_order: u8,
+    /// Which monomials.
+    pub poly_family: PolyFamily,
+    /// Whether the constant term is a candidate.
+    pub constant: bool,
+    /// sin/cos(kΩt) for k = 1..=`harmonics` (0 leaves them out).
+    pub harmonics: u8,
+    /// Base angular frequency Ω in rad/s; `None` lets the device estimate it.
+    pub omega: Option<f32>,
+    /// Whether the measured excitation u is a candidate term (`LibraryConfig::input` in lssi-core).
+    pub use_u: bool,
+    /// Whether the samples carry a measured velocity v (otherwise it is estimated from x).
+    pub has_v: bool,
+    /// Whether the samples carry a measured excitation u.
+    pub has_u: bool,
+    /// Memory time constant of the forgetting factor in seconds; `None` forgets nothing.
+    pub memory_time_s: Option<f32>,
+    /// Samples between thresholding sweeps (M).
+    pub screening_period: u32,
+    /// Size of the threshold grid (n solutions per sweep).
+    pub thresholds: u8,
+    /// Whether k-neighbour smoothing is on.
+    pub smoothing: bool,
+    /// Use every `row_stride`-th sample as a regression row.
+    pub row_stride: u8,
+}

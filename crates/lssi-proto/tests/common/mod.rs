@@ -1,0 +1,399 @@
+//! Strategies, worst-case values and helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use lssi_proto::{
+    Channels, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, MAX_BATCH, MAX_LOG, MAX_SOLUTIONS,
+    MAX_TERMS, Message, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch,
+    SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
+};
+use proptest::collection::vec;
+use proptest::prelude::*;
+
+/// `cases` cases; failures are printed shrunk rather than saved under the source tree.
+pub fn cases(cases: u32) -> ProptestConfig {
+    ProptestConfig {
+        cases,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    }
+}
+
+/// Any f32, NaNs and infinities included: the link must carry the bits, not the value.
+pub fn any_f32() -> impl Strategy<Value = f32> {
+    any::<u32>().prop_map(f32::from_bits)
+}
+
+/// Any f64, bit for bit.
+pub fn any_f64() -> impl Strategy<Value = f64> {
+    any::<u64>().prop_map(f64::from_bits)
+}
+
+pub fn channels() -> impl Strategy<Value = Channels> {
+    prop_oneof![
+        Just(Channels::X),
+        Just(Channels::XV),
+        Just(Channels::XU),
+        Just(Channels::XVU)
+    ]
+}
+
+pub fn sample(channels: Channels) -> impl Strategy<Value = WireSample> {
+    (any_f64(), any_f32(), any_f32(), any_f32()).prop_map(move |(t, x, v, u)| WireSample {
+        t,
+        x,
+        v: channels.has_v().then_some(v),
+        u: channels.has_u().then_some(u),
+    })
+}
+
+pub fn batch() -> impl Strategy<Value = SampleBatch> {
+    (any::<u32>(), channels()).prop_flat_map(|(seq, channels)| {
+        vec(sample(channels), 0..=MAX_BATCH).prop_map(move |samples| {
+            let mut batch = SampleBatch::new(seq, channels);
+            for sample in samples {
+                batch
+                    .push(sample)
+                    .expect("at most MAX_BATCH samples of the batch's channels");
+            }
+            batch
+        })
+    })
+}
+
+pub fn poly_family() -> impl Strategy<Value = PolyFamily> {
+    prop_oneof![
+        Just(PolyFamily::All),
+        Just(PolyFamily::Families),
+        Just(PolyFamily::OddFamilies)
+    ]
+}
+
+pub fn config() -> impl Strategy<Value = WireConfig> {
+    (
+        (
+            any_f64(),
+            any::<u16>(),
+            any::<u8>(),
+            poly_family(),
+            any::<bool>(),
+            any::<u8>(),
+        ),
+        (
+            proptest::option::of(any_f32()),
+            any::<bool>(),
+            any::<bool>(),
+            any::<bool>(),
+        ),
+        (
+            proptest::option::of(any_f32()),
+            any::<u32>(),
+            any::<u8>(),
+            any::<bool>(),
+            any::<u8>(),
+        ),
+    )
+        .prop_map(
+            |(
+                (sample_period_s, window, poly_order, poly_family, constant, harmonics),
+                (omega, use_u, has_v, has_u),
+                (memory_time_s, screening_period, thresholds, smoothing, row_stride),
+            )| WireConfig {
+                sample_period_s,
+                window,
+                poly_order,
+                poly_family,
+                constant,
+                harmonics,
+                omega,
+                use_u,
+                has_v,
+                has_u,
+                memory_time_s,
+                screening_period,
+                thresholds,
+                smoothing,
+                row_stride,
+            },
+        )
+}
+
+pub fn host_msg() -> impl Strategy<Value = HostMsg> {
+    prop_oneof![
+        Just(HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION
+        }),
+        config().prop_map(HostMsg::Configure),
+        batch().prop_map(HostMsg::Samples),
+        Just(HostMsg::Query),
+        Just(HostMsg::Reset),
+    ]
+}
+
+pub fn term_kind() -> impl Strategy<Value = TermKind> {
+    prop_oneof![
+        Just(TermKind::Constant),
+        Just(TermKind::Monomial),
+        Just(TermKind::Sin),
+        Just(TermKind::Cos),
+        Just(TermKind::Input),
+    ]
+}
+
+pub fn nak_reason() -> impl Strategy<Value = NakReason> {
+    prop_oneof![
+        Just(NakReason::Crc),
+        Just(NakReason::Decode),
+        Just(NakReason::Overflow),
+        Just(NakReason::OutOfOrder),
+        Just(NakReason::NotConfigured),
+        Just(NakReason::BadConfig),
+        Just(NakReason::Busy),
+        Just(NakReason::VersionMismatch),
+    ]
+}
+
+pub fn cost_unit() -> impl Strategy<Value = CostUnit> {
+    prop_oneof![
+        Just(CostUnit::Instructions),
+        Just(CostUnit::Cycles),
+        Just(CostUnit::Ticks),
+        Just(CostUnit::Nanoseconds),
+    ]
+}
+
+pub fn snapshot() -> impl Strategy<Value = ModelSnapshot> {
+    let term =
+        (term_kind(), any::<u8>(), any::<u8>()).prop_map(|(kind, a, b)| TermCode { kind, a, b });
+    let solution =
+        (any_f32(), any_f32(), any::<u32>()).prop_map(|(threshold, mean_error, support)| {
+            SolutionSummary {
+                threshold,
+                mean_error,
+                support,
+            }
+        });
+    (
+        vec(term, 0..=MAX_TERMS),
+        vec(any_f32(), 0..=MAX_TERMS),
+        vec(solution, 0..=MAX_SOLUTIONS),
+        (any::<u8>(), any::<u8>(), any::<u8>(), any_f32()),
+        (
+            proptest::option::of(any_f32()),
+            proptest::option::of(any_f32()),
+        ),
+        (any_f32(), any_f32(), any::<u32>(), any::<u32>()),
+    )
+        .prop_map(
+            |(
+                terms,
+                coefficients,
+                solutions,
+                (selected, k_x, k_v, omega),
+                (resonance_hz, wells),
+                rest,
+            )| {
+                let (offset_x, offset_v, samples, rejected) = rest;
+                ModelSnapshot {
+                    terms: terms.into_iter().collect(),
+                    coefficients: coefficients.into_iter().collect(),
+                    solutions: solutions.into_iter().collect(),
+                    selected,
+                    k_x,
+                    k_v,
+                    omega,
+                    resonance_hz,
+                    wells,
+                    offset_x,
+                    offset_v,
+                    samples,
+                    rejected,
+                }
+            },
+        )
+}
+
+pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
+    prop_oneof![
+        (any::<u8>(), any::<u16>(), any::<u16>()).prop_map(
+            |(max_terms, window_capacity, max_batch)| {
+                DeviceMsg::HelloReply {
+                    protocol_version: PROTOCOL_VERSION,
+                    max_terms,
+                    window_capacity,
+                    max_batch,
+                }
+            }
+        ),
+        any::<u32>().prop_map(|seq| DeviceMsg::Ack { seq }),
+        (any::<u32>(), nak_reason()).prop_map(|(seq, reason)| DeviceMsg::Nak { seq, reason }),
+        snapshot().prop_map(DeviceMsg::Model),
+        (
+            (
+                any::<u32>(),
+                any::<u32>(),
+                any::<u16>(),
+                any::<u32>(),
+                any::<u32>()
+            ),
+            (cost_unit(), any::<u32>(), any::<u32>(), any::<u32>()),
+        )
+            .prop_map(
+                |(
+                    (samples, rejected, buffer_fill, cost_mean, cost_max),
+                    (cost_unit, watchdog, crc_errors, frames_ok),
+                )| DeviceMsg::Health {
+                    samples,
+                    rejected,
+                    buffer_fill,
+                    cost_mean,
+                    cost_max,
+                    cost_unit,
+                    watchdog,
+                    crc_errors,
+                    frames_ok,
+                },
+            ),
+        vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
+            bytes: bytes.into_iter().collect()
+        }),
+    ]
+}
+
+/// The largest encoding of each shape: full vectors, widest varints, every `Option` `Some`.
+pub fn worst_batch() -> SampleBatch {
+    let mut batch = SampleBatch::new(u32::MAX, Channels::XVU);
+    while !batch.is_full() {
+        batch
+            .push(WireSample {
+                t: -1.5,
+                x: 2.5,
+                v: Some(-3.5),
+                u: Some(4.5),
+            })
+            .expect("room until full");
+    }
+    batch
+}
+
+pub fn worst_config() -> WireConfig {
+    WireConfig {
+        sample_period_s: 1e-3,
+        window: u16::MAX,
+        poly_order: u8::MAX,
+        poly_family: PolyFamily::OddFamilies,
+        constant: true,
+        harmonics: u8::MAX,
+        omega: Some(21.4),
+        use_u: true,
+        has_v: true,
+        has_u: true,
+        memory_time_s: Some(10.0),
+        screening_period: u32::MAX,
+        thresholds: u8::MAX,
+        smoothing: true,
+        row_stride: u8::MAX,
+    }
+}
+
+pub fn worst_snapshot() -> ModelSnapshot {
+    let term = TermCode {
+        kind: TermKind::Input,
+        a: u8::MAX,
+        b: u8::MAX,
+    };
+    let solution = SolutionSummary {
+        threshold: 0.1,
+        mean_error: 0.2,
+        support: u32::MAX,
+    };
+    ModelSnapshot {
+        terms: core::iter::repeat_n(term, MAX_TERMS).collect(),
+        coefficients: core::iter::repeat_n(1.0, MAX_TERMS).collect(),
+        solutions: core::iter::repeat_n(solution, MAX_SOLUTIONS).collect(),
+        selected: u8::MAX,
+        k_x: u8::MAX,
+        k_v: u8::MAX,
+        omega: 21.4,
+        resonance_hz: Some(3.2),
+        wells: Some(2.1e-3),
+        offset_x: 1e-4,
+        offset_v: -1e-4,
+        samples: u32::MAX,
+        rejected: u32::MAX,
+    }
+}
+
+/// The largest value of every variant of both enums.
+pub fn worst_host_msgs() -> Vec<HostMsg> {
+    vec![
+        HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+        },
+        HostMsg::Configure(worst_config()),
+        HostMsg::Samples(worst_batch()),
+        HostMsg::Query,
+        HostMsg::Reset,
+    ]
+}
+
+pub fn worst_device_msgs() -> Vec<DeviceMsg> {
+    vec![
+        DeviceMsg::HelloReply {
+            protocol_version: PROTOCOL_VERSION,
+            max_terms: u8::MAX,
+            window_capacity: u16::MAX,
+            max_batch: u16::MAX,
+        },
+        DeviceMsg::Ack { seq: u32::MAX },
+        DeviceMsg::Nak {
+            seq: u32::MAX,
+            reason: NakReason::VersionMismatch,
+        },
+        DeviceMsg::Model(worst_snapshot()),
+        DeviceMsg::Health {
+            samples: u32::MAX,
+            rejected: u32::MAX,
+            buffer_fill: u16::MAX,
+            cost_mean: u32::MAX,
+            cost_max: u32::MAX,
+            cost_unit: CostUnit::Nanoseconds,
+            watchdog: u32::MAX,
+            crc_errors: u32::MAX,
+            frames_ok: u32::MAX,
+        },
+        DeviceMsg::Log {
+            bytes: core::iter::repeat_n(0xA5, MAX_LOG).collect(),
+        },
+    ]
+}
+
+/// The frame of `message`, as a `Vec`.
+pub fn frame<T: Message>(message: &T) -> Vec<u8> {
+    let mut out = vec![0u8; T::MAX_FRAME_LEN];
+    let len = encode(message, &mut out).expect("MAX_FRAME_LEN always suffices");
+    out.truncate(len);
+    out
+}
+
+/// Every result a fresh decoder gives for `chunks`, fed in order.
+pub fn decode_chunks<T: Message, const N: usize>(chunks: &[&[u8]]) -> Vec<Result<T, Error>> {
+    let mut decoder = FrameDecoder::<N>::new();
+    let mut results = Vec::new();
+    for chunk in chunks {
+        results.extend(decoder.feed::<T>(chunk));
+        assert!(decoder.buffered() <= N);
+    }
+    results
+}
+
+/// A frame around an arbitrary payload, with a correct CRC: for payloads `encode` never makes.
+pub fn frame_payload(payload: &[u8]) -> Vec<u8> {
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(payload);
+    let mut raw = payload.to_vec();
+    raw.extend_from_slice(&crc.to_le_bytes());
+    let mut out = vec![0u8; raw.len() + raw.len() / 254 + 2];
+    let len = cobs::encode(&raw, &mut out);
+    out.truncate(len);
+    out.push(0);
+    out
+}

@@ -1,0 +1,77 @@
+//! Golden frames: the README's worked examples, byte for byte, for implementers elsewhere.
+
+mod common;
+
+use common::frame;
+use lssi_proto::{
+    Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, SampleBatch, WireSample,
+    decode_frame,
+};
+
+#[test]
+fn crc_is_crc32c() {
+    // The catalogue's check value of CRC-32C (iSCSI): "123456789" → 0xE3069283.
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
+    assert_eq!(crc.checksum(b"123456789"), 0xE306_9283);
+    // The Hello frame's CRC, over its payload 00 01.
+    assert_eq!(crc.checksum(&[0x00, 0x01]), 0x030A_F4D1);
+}
+
+#[test]
+fn golden_host_frames() {
+    assert_eq!(
+        frame(&HostMsg::Hello {
+            protocol_version: 1
+        }),
+        [0x01, 0x06, 0x01, 0xD1, 0xF4, 0x0A, 0x03, 0x00]
+    );
+    assert_eq!(
+        frame(&HostMsg::Query),
+        [0x06, 0x03, 0xA5, 0xA0, 0x2D, 0x41, 0x00]
+    );
+
+    let mut batch = SampleBatch::new(1, Channels::X);
+    batch
+        .push(WireSample {
+            t: 0.5,
+            x: 2.0,
+            v: None,
+            u: None,
+        })
+        .expect("room");
+    let golden = [
+        0x03, 0x02, 0x01, 0x02, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x03, 0xE0, 0x3F, 0x01, 0x01,
+        0x06, 0x40, 0xDE, 0x04, 0xC0, 0xDB, 0x00,
+    ];
+    assert_eq!(frame(&HostMsg::Samples(batch.clone())), golden);
+    let mut bytes = golden;
+    assert_eq!(
+        decode_frame::<HostMsg>(&mut bytes),
+        Ok(HostMsg::Samples(batch))
+    );
+    // Decoded in place: the payload (02 01 00 01, t, x) and the CRC (DE 04 C0 DB).
+    assert_eq!(
+        bytes[..20],
+        [
+            0x02, 0x01, 0x00, 0x01, 0, 0, 0, 0, 0, 0, 0xE0, 0x3F, 0, 0, 0, 0x40, 0xDE, 0x04, 0xC0,
+            0xDB
+        ]
+    );
+    assert!(golden.len() <= MAX_HOST_FRAME_LEN);
+}
+
+#[test]
+fn golden_device_frames() {
+    // seq 300 is the varint AC 02.
+    assert_eq!(
+        frame(&DeviceMsg::Ack { seq: 300 }),
+        [0x08, 0x01, 0xAC, 0x02, 0x6C, 0xFA, 0xC8, 0x73, 0x00]
+    );
+    assert_eq!(
+        frame(&DeviceMsg::Nak {
+            seq: 7,
+            reason: NakReason::OutOfOrder
+        }),
+        [0x08, 0x02, 0x07, 0x03, 0xC6, 0xCB, 0x36, 0x46, 0x00]
+    );
+}

@@ -1,0 +1,137 @@
+//! Failures the `lssi` command shows to a person: one sentence each, and an exit code.
+//!
+//! `main` prints a [`CliError`] as `lssi: <sentence>` on stderr and exits with
+//! [`CliError::exit_code`]: 2 when the input was unusable (a bad recording, a bad flag value;
+//! clap itself exits 2 for flags it cannot parse), 1 when the work itself failed (an output that
+//! cannot be written).
+//!
+//! ```
+//! use lssi_host::error::CliError;
+//! use lssi_host::recording::{ColumnNames, parse_csv};
+//!
+//! let error: CliError = parse_csv("a.csv", "".as_bytes(), &ColumnNames::default())
+//!     .unwrap_err()
+//!     .into();
+//! assert_eq!(error.exit_code(), 2);
+//! assert!(error.to_string().starts_with("a.csv: the file is empty"));
+//! ```
+
+use std::fmt;
+use std::io;
+use std::path::PathBuf;
+
+use crate::generators::OptionError;
+use crate::recording::RecordingError;
+
+/// Exit code for unusable input: a bad recording or a bad flag value.
+pub const EXIT_BAD_INPUT: u8 = 2;
+/// Exit code when the work failed for another reason, such as an unwritable output.
+pub const EXIT_FAILURE: u8 = 1;
+
+/// A failure of an `lssi` subcommand.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum CliError {
+    /// An input recording cannot be used.
+    Recording(RecordingError),
+    /// A flag's value cannot be used.
+    BadFlag {
+        /// The flag, e.g. `--dt`.
+        flag: &'static str,
+        /// The value given, as text.
+        value: String,
+        /// What it must be, as the end of a sentence.
+        requirement: String,
+    },
+    /// An output path cannot be used as given.
+    BadOutput {
+        /// The path given.
+        path: PathBuf,
+        /// Why, as the end of a sentence.
+        reason: String,
+    },
+    /// A simulation left the finite numbers: the options have no bounded solution that long.
+    Diverged {
+        /// The generator's model name.
+        model: String,
+        /// The first sample time whose state is not finite, in seconds.
+        t: f64,
+    },
+    /// The identifier cannot use a recording (a sentence naming the file).
+    Identify(String),
+    /// An output file could not be written.
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: io::Error,
+    },
+}
+
+impl CliError {
+    /// The process exit code for this failure.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CliError::Recording(_)
+            | CliError::BadFlag { .. }
+            | CliError::BadOutput { .. }
+            | CliError::Diverged { .. }
+            | CliError::Identify(_) => EXIT_BAD_INPUT,
+            CliError::Write { .. } => EXIT_FAILURE,
+        }
+    }
+
+    /// Turns a generator [`OptionError`] into a flag error, naming the flag that sets `field`.
+    pub fn from_option(error: OptionError, flag: &'static str) -> Self {
+        CliError::BadFlag {
+            flag,
+            value: error.value.to_string(),
+            requirement: error.requirement.to_owned(),
+        }
+    }
+}
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CliError::Recording(error) => error.fmt(f),
+            CliError::Identify(sentence) => f.write_str(sentence),
+            CliError::BadFlag {
+                flag,
+                value,
+                requirement,
+            } => write!(
+                f,
+                "{flag} {value} cannot be used: it must be {requirement}."
+            ),
+            CliError::BadOutput { path, reason } => write!(f, "{}: {reason}.", path.display()),
+            CliError::Diverged { model, t } => write!(
+                f,
+                "the {model} simulation diverged at t = {t} s, so these options have no \
+                 bounded solution that long; try a smaller --t-end or other coefficients."
+            ),
+            CliError::Write { path, source } => {
+                write!(f, "{}: cannot write the file: {source}.", path.display())
+            }
+        }
+    }
+}
+
+impl std::error::Error for CliError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            CliError::Recording(error) => Some(error),
+            CliError::Write { source, .. } => Some(source),
+            CliError::BadFlag { .. }
+            | CliError::BadOutput { .. }
+            | CliError::Diverged { .. }
+            | CliError::Identify(_) => None,
+        }
+    }
+}
+
+impl From<RecordingError> for CliError {
+    fn from(error: RecordingError) -> Self {
+        CliError::Recording(error)
+    }
+}

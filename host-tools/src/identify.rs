@@ -1,0 +1,521 @@
+//! `lssi identify`: a recording through the streaming identifier, as a device would see it.
+//!
+//! What the paper leaves to the user is decided from the data here, once, before streaming:
+//! the sample period (median interval), the derivative window and degree
+//! ([`lssi_core::tuning::choose_window`]) and, without `--omega`, the excitation frequency
+//! (the peak of the spectrum of what a polynomial model of the same library cannot explain).
+//! The identifier then runs sample by sample and the model at the end of the file is reported.
+
+use lssi_core::derivative::Taps;
+use lssi_core::factor::Factor;
+use lssi_core::{
+    Channels, Config, Identifier, Library, LibraryConfig, PolyFamily, Real, Sample, Term,
+};
+use serde::Serialize;
+
+use crate::recording::Recording;
+
+/// Window capacity of the host identifier (samples).
+pub const WINDOW_CAPACITY: usize = 1023;
+/// Library capacity of the host identifier (terms).
+pub const TERM_CAPACITY: usize = 32;
+
+/// What the user chose (everything else comes from the data).
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Base excitation frequency, rad/s (`None`: estimated).
+    pub omega: Option<f64>,
+    /// sin/cos harmonics of Ω.
+    pub harmonics: u8,
+    /// Highest polynomial order.
+    pub poly_order: u8,
+    /// Which monomials.
+    pub family: PolyFamily,
+    /// Compute in f32 (what a device runs) rather than f64.
+    pub f32: bool,
+    /// k-neighbour smoothing on (off only for the ablation).
+    pub smoothing: bool,
+    /// Forgetting time constant, seconds.
+    pub memory: Option<f64>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            omega: None,
+            harmonics: 1,
+            poly_order: 3,
+            family: PolyFamily::All,
+            f32: true,
+            smoothing: true,
+            memory: None,
+        }
+    }
+}
+
+/// Why a recording cannot be identified.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyError(pub String);
+
+impl std::fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for IdentifyError {}
+
+/// One term of the selected model.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TermReport {
+    /// Name (`x`, `x^2*v`, `cos(2t)`, …).
+    pub term: String,
+    /// Coefficient in physical units.
+    pub coef: f64,
+}
+
+/// One solution of the sweep.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SolutionReport {
+    /// Threshold on scaled coefficients.
+    pub threshold: f64,
+    /// Held-out mean squared error of x''.
+    pub mean_error: f64,
+    /// Active term names.
+    pub terms: Vec<String>,
+}
+
+/// K per channel.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct KReport {
+    /// K for x.
+    pub x: u8,
+    /// K for v.
+    pub v: u8,
+}
+
+/// Everything `identify` reports (the `--json` object).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Report {
+    /// Always `x''`.
+    pub target: String,
+    /// The selected model's active terms.
+    pub terms: Vec<TermReport>,
+    /// All solutions, dense to sparse.
+    pub solutions: Vec<SolutionReport>,
+    /// Index of the selected solution.
+    pub selected: usize,
+    /// K per channel.
+    pub k: KReport,
+    /// Base angular frequency Ω, rad/s.
+    pub omega: f64,
+    /// Whether Ω was estimated from the data.
+    pub omega_estimated: bool,
+    /// Linear resonance, Hz (when ξ_x < 0).
+    pub resonance_hz: Option<f64>,
+    /// Well positions ±w (double well), in the model's coordinates.
+    pub wells: Option<f64>,
+    /// Small-oscillation frequency in a well, Hz.
+    pub well_resonance_hz: Option<f64>,
+    /// Sensor offsets found (x, v): the model is in x − offset_x, v − offset_v.
+    pub offsets: [f64; 2],
+    /// Samples fed in.
+    pub samples: u64,
+    /// Samples rejected (non-finite, absurd, out of order).
+    pub rejected: u64,
+    /// Derivative window (samples) and degree chosen from the data.
+    pub window: usize,
+    /// Local polynomial degree.
+    pub degree: u8,
+    /// Sample period, seconds.
+    pub sample_period: f64,
+    /// `f32` or `f64`.
+    pub precision: String,
+}
+
+/// The configuration `identify` derives from a recording and the options.
+pub fn configure(
+    recording: &Recording,
+    options: &Options,
+) -> Result<(Config, bool), IdentifyError> {
+    let file = recording.path.display();
+    let finite_t: Vec<f64> = recording
+        .t
+        .iter()
+        .copied()
+        .filter(|t| t.is_finite())
+        .collect();
+    let mut steps: Vec<f64> = finite_t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if steps.len() < 64 {
+        return Err(IdentifyError(format!(
+            "{file}: only {} usable samples; the identifier needs a few hundred at least.",
+            steps.len() + 1
+        )));
+    }
+    steps.sort_by(f64::total_cmp);
+    let dt = steps[steps.len() / 2];
+    let channels = Channels {
+        velocity: recording.v.is_some(),
+        input: recording.u.is_some(),
+    };
+    // The window from the data: the target comes from v when it is measured.
+    let (source, order): (Vec<f64>, usize) = match &recording.v {
+        Some(v) => (v.iter().copied().filter(|s| s.is_finite()).collect(), 1),
+        None => (
+            recording
+                .x
+                .iter()
+                .copied()
+                .filter(|s| s.is_finite())
+                .collect(),
+            2,
+        ),
+    };
+    let memory_samples = options
+        .memory
+        .map_or(source.len(), |m| ((m / dt) as usize).min(source.len()));
+    let choice = lssi_core::tuning::choose_window::<f64, WINDOW_CAPACITY>(
+        &source,
+        order,
+        dt,
+        memory_samples,
+    )
+    .ok_or_else(|| {
+        IdentifyError(format!(
+            "{file}: too few samples to choose a derivative window."
+        ))
+    })?;
+    let library = LibraryConfig {
+        poly_order: options.poly_order,
+        family: options.family,
+        constant: true,
+        harmonics: options.harmonics,
+        input: channels.input,
+    };
+    let mut config = Config {
+        sample_period: dt,
+        window: choice.window,
+        derivative_degree: choice.degree,
+        library,
+        omega: 1.0,
+        channels,
+        memory: options.memory,
+        smoothing: options.smoothing,
+        ..Config::default()
+    };
+    let mut estimated = false;
+    if options.harmonics > 0 {
+        config.omega = match options.omega {
+            Some(w) => w,
+            None => {
+                estimated = true;
+                estimate_omega(recording, &config)?
+            }
+        };
+    }
+    config
+        .validate::<WINDOW_CAPACITY, TERM_CAPACITY>()
+        .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    Ok((config, estimated))
+}
+
+/// The excitation frequency: the spectral peak of the part of x'' that the library's
+/// polynomial terms cannot explain, refined on the exact transform.
+pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, IdentifyError> {
+    let file = recording.path.display();
+    let taps: Taps<f64, WINDOW_CAPACITY> = Taps::design(
+        config.window,
+        usize::from(config.derivative_degree),
+        config.sample_period,
+    )
+    .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    let n = config.window;
+    let stride = 4usize;
+    let library: Library<TERM_CAPACITY> = Library::new(&LibraryConfig {
+        harmonics: 0,
+        input: false,
+        ..config.library
+    })
+    .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    let mut factor: Factor<f64, TERM_CAPACITY> = Factor::new(library.len());
+    let mut rows = Vec::new();
+    let x = &recording.x;
+    let mut start = 0;
+    while start + n <= x.len() {
+        let w = &x[start..start + n];
+        let (xh, vh, yh) = match &recording.v {
+            Some(v) => {
+                let vw = &v[start..start + n];
+                (
+                    taps.apply(0, w, &[]),
+                    taps.apply(0, vw, &[]),
+                    taps.apply(1, vw, &[]),
+                )
+            }
+            None => (
+                taps.apply(0, w, &[]),
+                taps.apply(1, w, &[]),
+                taps.apply(2, w, &[]),
+            ),
+        };
+        if xh.is_finite() && vh.is_finite() && yh.is_finite() {
+            let mut row = [0.0; TERM_CAPACITY];
+            library.evaluate(xh, vh, 0.0, 0.0, &mut row);
+            factor.update(&row, yh, 1.0);
+            rows.push((recording.t[start + (n - 1) / 2], row, yh));
+        }
+        start += stride;
+    }
+    if rows.len() < 64 {
+        return Err(IdentifyError(format!(
+            "{file}: too few samples to estimate the excitation frequency; give --omega."
+        )));
+    }
+    let _ = factor;
+    let p = library.len();
+    // Residual energy of the polynomial library plus sin/cos(ωt): the excitation frequency is
+    // the ω that explains most. (The polynomial terms alone absorb much of a harmonic forcing,
+    // so the residual's spectrum is no guide; the fit is.)
+    let rss = |w: f64| {
+        let mut f: Factor<f64, TERM_CAPACITY> = Factor::new(p + 2);
+        for (t, row, y) in rows.iter().step_by(2) {
+            let mut r = *row;
+            r[p] = (w * t).sin();
+            r[p + 1] = (w * t).cos();
+            f.update(&r, *y, 1.0);
+        }
+        f.residual_energy()
+    };
+    // Candidates: the peaks of the spectrum of x''.
+    let m = rows.len();
+    let size = (4 * m).next_power_of_two();
+    let mut buffer: Vec<rustfft::num_complex::Complex<f64>> = rows
+        .iter()
+        .map(|(_, _, y)| rustfft::num_complex::Complex::new(*y, 0.0))
+        .collect();
+    buffer.resize(size, rustfft::num_complex::Complex::new(0.0, 0.0));
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(size)
+        .process(&mut buffer);
+    let step = config.sample_period * stride as f64;
+    let span = step * m as f64;
+    let bin_omega = |k: usize| 2.0 * std::f64::consts::PI * k as f64 / (size as f64 * step);
+    // Fewer than two periods in the record are no excitation.
+    let first = (1..size / 2)
+        .find(|&k| bin_omega(k) * span > 4.0 * std::f64::consts::PI)
+        .unwrap_or(1);
+    let power: Vec<f64> = buffer[..size / 2].iter().map(|c| c.norm_sqr()).collect();
+    let mut peaks: Vec<usize> = (first.max(1)..size / 2 - 1)
+        .filter(|&k| power[k] > power[k - 1] && power[k] >= power[k + 1])
+        .collect();
+    peaks.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
+    peaks.truncate(12);
+    let best = peaks
+        .iter()
+        .map(|&k| (k, rss(bin_omega(k))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| k)
+        .ok_or_else(|| {
+            IdentifyError(format!(
+                "{file}: x'' has no spectral peak to take for the excitation; give --omega."
+            ))
+        })?;
+    // Golden-section refinement of the fit around the chosen bin.
+    let (mut lo, mut hi) = (bin_omega(best - 1), bin_omega(best + 1));
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..30 {
+        let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if rss(a) < rss(b) { hi = b } else { lo = a }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
+/// Runs a recording through the identifier in precision `T`.
+pub fn run<T: Real>(
+    recording: &Recording,
+    config: Config,
+    omega_estimated: bool,
+) -> Result<Report, IdentifyError> {
+    let file = recording.path.display();
+    let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
+        Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    for s in recording.samples() {
+        let sample = Sample {
+            t: s.t,
+            x: T::from_f64(s.x),
+            v: s.v.map(T::from_f64),
+            u: s.u.map(T::from_f64),
+        };
+        // A rejected sample is counted by the identifier and reported; it never stops the run.
+        let _ = identifier.push(sample);
+    }
+    identifier.screen();
+    let counters = *identifier.counters();
+    let model = identifier.model().ok_or_else(|| {
+        IdentifyError(format!(
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            counters.accepted,
+            counters.rejected(),
+            identifier.library().len()
+        ))
+    })?;
+    Ok(report(
+        model,
+        &config,
+        omega_estimated,
+        counters.rejected(),
+        std::any::type_name::<T>(),
+    ))
+}
+
+fn names(terms: &[Term], support: u32, omega: f64) -> Vec<String> {
+    terms
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| support & (1 << j) != 0)
+        .map(|(_, t)| t.name(omega).to_string())
+        .collect()
+}
+
+fn report<T: Real, const P: usize>(
+    model: &lssi_core::Model<T, P>,
+    config: &Config,
+    omega_estimated: bool,
+    rejected: u64,
+    precision: &str,
+) -> Report {
+    let omega = model.omega;
+    let terms = model
+        .terms
+        .iter()
+        .zip(model.coefficients.iter())
+        .filter(|(_, c)| **c != T::ZERO)
+        .map(|(t, c)| TermReport {
+            term: t.name(omega).to_string(),
+            coef: c.to_f64(),
+        })
+        .collect();
+    let solutions = model
+        .solutions
+        .iter()
+        .map(|s| SolutionReport {
+            threshold: s.threshold.to_f64(),
+            mean_error: s.mean_error.to_f64(),
+            terms: names(&model.terms, s.support, omega),
+        })
+        .collect();
+    Report {
+        target: "x''".into(),
+        terms,
+        solutions,
+        selected: model.selected,
+        k: KReport {
+            x: model.k.0,
+            v: model.k.1,
+        },
+        omega,
+        omega_estimated,
+        resonance_hz: model.resonance_hz(),
+        wells: model.wells(),
+        well_resonance_hz: model.well_resonance_hz(),
+        offsets: [model.offset_x.to_f64(), model.offset_v.to_f64()],
+        samples: model.samples,
+        rejected,
+        window: config.window,
+        degree: config.derivative_degree,
+        sample_period: config.sample_period,
+        precision: precision.to_string(),
+    }
+}
+
+/// Formats a coefficient with 5 significant digits.
+fn number(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let magnitude = v.abs().log10().floor();
+    if (-3.0..6.0).contains(&magnitude) {
+        let decimals = (4.0 - magnitude).max(0.0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        format!("{v:.4e}")
+    }
+}
+
+/// The human-readable report.
+pub fn render(report: &Report) -> String {
+    let mut out = String::new();
+    let mut equation = String::from("x'' =");
+    for (i, t) in report.terms.iter().enumerate() {
+        let sign = if t.coef < 0.0 { "-" } else { "+" };
+        let value = number(t.coef.abs());
+        let term = if t.term == "1" {
+            String::new()
+        } else {
+            format!(" {}", t.term)
+        };
+        if i == 0 {
+            equation.push_str(&format!(
+                " {}{value}{term}",
+                if t.coef < 0.0 { "-" } else { "" }
+            ));
+        } else {
+            equation.push_str(&format!(" {sign} {value}{term}"));
+        }
+    }
+    if report.terms.is_empty() {
+        equation.push_str(" 0");
+    }
+    out.push_str(&equation);
+    out.push('\n');
+    out.push_str(&format!(
+        "K: x = {}, v = {}   window: {} samples, degree {}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",
+        report.k.x,
+        report.k.v,
+        report.window,
+        report.degree,
+        number(report.omega),
+        if report.omega_estimated { " (estimated)" } else { "" },
+        report.samples,
+        report.rejected,
+        report.precision
+    ));
+    if report.offsets != [0.0, 0.0] {
+        out.push_str(&format!(
+            "sensor offsets: x {}, v {} (the model is about the equilibrium)\n",
+            number(report.offsets[0]),
+            number(report.offsets[1])
+        ));
+    }
+    out.push_str("\n  #  threshold   mean error  terms\n");
+    for (i, s) in report.solutions.iter().enumerate() {
+        let mark = if i == report.selected { "*" } else { " " };
+        out.push_str(&format!(
+            "{mark}{i:>2}  {:>9.3e}  {:>11.4e}  {}\n",
+            s.threshold,
+            s.mean_error,
+            s.terms.join(", ")
+        ));
+    }
+    out.push_str(
+        "  (* = selected by MES: the sparsest solution within 5 % of the least held-out error)\n\n",
+    );
+    match report.resonance_hz {
+        Some(f) => out.push_str(&format!("linear resonance: {} Hz\n", number(f))),
+        None => {
+            out.push_str("linear resonance: none (the linear stiffness term is not restoring)\n")
+        }
+    }
+    if let (Some(w), Some(f)) = (report.wells, report.well_resonance_hz) {
+        out.push_str(&format!(
+            "double well: wells at ±{} (resonance in a well {} Hz)\n",
+            number(w),
+            number(f)
+        ));
+    }
+    out
+}

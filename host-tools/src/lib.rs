@@ -1,0 +1,35 @@
+//! The host side of lssi: the `lssi` command's building blocks, usable from tests and tools.
+//!
+//! - [`recording`]: CSV recordings in and out, with one-sentence errors.
+//! - [`generators`]: synthetic recordings with a known equation ([`generators::paper`] is the
+//!   paper's eq. 17), built on [`ode`] (fixed-step RK4) and [`noise`] (eq. 16).
+//! - [`truth`]: the answer key a generator writes and a benchmark reads.
+//! - [`terms`]: how library terms are named across the project.
+//! - [`error`]: the command's failures, each a sentence and an exit code.
+//! - [`commands`]: the subcommands that `main` dispatches to.
+//!
+//! A subcommand reads its input like this, and `main` prints the error as `lssi: <sentence>`:
+//!
+//! ```no_run
+//! use lssi_host::error::CliError;
+//! use lssi_host::recording::{ColumnNames, Recording};
+//!
+//! let recording = Recording::read("data.csv", &ColumnNames::default())?;
+//! for sample in recording.samples() {
+//!     // feed sample.t, sample.x, sample.v (if observed) to the identifier
+//! }
+//! # Ok::<(), CliError>(())
+//! ```
+
+// Tests may panic on the unexpected: that is how they fail.
+#![cfg_attr(test, allow(clippy::unwrap_used))]
+
+pub mod commands;
+pub mod error;
+pub mod generators;
+pub mod identify;
+pub mod noise;
+pub mod ode;
+pub mod recording;
+pub mod terms;
+pub mod truth;

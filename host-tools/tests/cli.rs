@@ -1,0 +1,107 @@
+//! The `lssi` binary: exit codes and the messages a person sees.
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn lssi(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn arg(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+#[test]
+fn malformed_recording_exits_2_with_one_sentence() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("data.csv");
+    std::fs::write(&path, "t,x,v\n0,1,0\n0.001,1.2.3,0\n").unwrap();
+    let out = lssi(&["info", arg(&path)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        text(&out.stderr),
+        format!(
+            "lssi: {}: line 3, column 'x': \"1.2.3\" is not a number.\n",
+            path.display()
+        )
+    );
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn gen_writes_a_recording_that_info_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let out = lssi(&[
+        "gen",
+        "paper",
+        "--t-end",
+        "1",
+        "--noise",
+        "gauss",
+        arg(&csv),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(dir.path().join("run.json").exists());
+    let first = std::fs::read(&csv).unwrap();
+    assert!(first.starts_with(b"t,x,v\n0.0,"));
+
+    let out = lssi(&["info", arg(&csv)]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains(": 1001 samples, t from 0 to 1 s"));
+
+    // The same seed writes the same bytes.
+    lssi(&[
+        "gen",
+        "paper",
+        "--t-end",
+        "1",
+        "--noise",
+        "gauss",
+        arg(&csv),
+    ]);
+    assert_eq!(std::fs::read(&csv).unwrap(), first);
+}
+
+#[test]
+fn bad_flag_values_exit_2_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let out = lssi(&["gen", "paper", "--dt", "0", arg(&csv)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        text(&out.stderr),
+        "lssi: --dt 0 cannot be used: it must be positive and finite.\n"
+    );
+    assert!(!csv.exists());
+
+    let out = lssi(&["gen", "paper", "--eps", "-1", "--t-end", "5", arg(&csv)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).starts_with("lssi: the paper-eq17 simulation diverged at t = "));
+
+    // Flags clap cannot parse exit 2 too, with clap's own message.
+    let out = lssi(&["gen", "paper", "--noise", "pink", arg(&csv)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("pink"));
+}
+
+#[test]
+fn unwritable_output_exits_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("missing-dir").join("run.csv");
+    let out = lssi(&["gen", "paper", "--t-end", "0.01", arg(&csv)]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).starts_with(&format!("lssi: {}: cannot write the file: ", csv.display())),
+        "{}",
+        text(&out.stderr)
+    );
+}
