@@ -313,7 +313,19 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         .filter(|&k| power[k] > power[k - 1] && power[k] >= power[k + 1])
         .collect();
     peaks.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
-    peaks.truncate(12);
+    // Distinct peaks only: the zero padding turns a strong line's side lobes into local
+    // maxima, within a couple of resolution widths (size / m bins each) of it.
+    let separation = 2 * size / m;
+    let mut distinct: Vec<usize> = Vec::new();
+    for k in peaks {
+        if distinct.iter().all(|&d| d.abs_diff(k) > separation) {
+            distinct.push(k);
+            if distinct.len() == 12 {
+                break;
+            }
+        }
+    }
+    let peaks = distinct;
     let best = peaks
         .iter()
         .map(|&k| (k, rss(bin_omega(k))))

@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lssi_host::commands::{generate, identify, info};
+use lssi_host::commands::{bench, generate, identify, info};
 use lssi_host::error::CliError;
 
 /// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
@@ -20,6 +20,8 @@ struct Cli {
 enum Command {
     /// Write a synthetic recording (CSV) and its truth (JSON beside it).
     Gen(generate::GenArgs),
+    /// Benchmarks that print tables (accuracy on the paper's eq. 17, throughput).
+    Bench(bench::BenchArgs),
     /// Identify the equation of motion x'' = f(x, v, t) of a recording (CSV).
     Identify(identify::IdentifyArgs),
     /// Read a recording (CSV) and summarise it, or say why it cannot be used.
@@ -31,6 +33,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Gen(args) => generate::run(args),
         Command::Info(args) => info::run(args),
         Command::Identify(args) => identify::run(args),
+        Command::Bench(args) => bench::run(args),
     }
 }
 

@@ -1,0 +1,138 @@
+//! End to end: recordings made by `lssi gen paper` through `lssi identify`'s code path, and
+//! the bundled recording through the binary. Each assertion can fail: it compares with the
+//! true coefficients of eq. 17.
+
+use lssi_host::commands::bench::score;
+use lssi_host::commands::identify::identify_recording;
+use lssi_host::generators::Observe;
+use lssi_host::generators::paper::{PaperOptions, generate_paper};
+use lssi_host::identify::Options;
+use lssi_host::noise::NoiseKind;
+
+const TRUTH: [(&str, f64); 6] = [
+    ("x", -1.0),
+    ("v", 1.0),
+    ("x^2", 2.0),
+    ("x^3", -4.0),
+    ("x^2*v", -2.0),
+    ("cos(2t)", 5.0),
+];
+
+fn paper_options(f32: bool) -> Options {
+    Options {
+        omega: Some(1.0),
+        harmonics: 3,
+        poly_order: 3,
+        f32,
+        ..Options::default()
+    }
+}
+
+fn check(opts: PaperOptions, options: &Options, max_error: f64) {
+    let recording = generate_paper(&opts).to_recording("eq17.csv");
+    let report = identify_recording(&recording, options).expect("identifies");
+    let (errors, spurious) = score(&report, &TRUTH);
+    let worst = errors.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        worst <= max_error && spurious == 0,
+        "{opts:?}: errors {errors:?} %, {spurious} spurious, model {:?}",
+        report.terms
+    );
+}
+
+#[test]
+fn recovers_eq17_in_f32_and_f64_at_low_noise() {
+    for f32 in [true, false] {
+        check(
+            PaperOptions {
+                delta: 0.001,
+                ..PaperOptions::default()
+            },
+            &paper_options(f32),
+            0.5,
+        );
+    }
+}
+
+#[test]
+fn recovers_eq17_from_displacement_alone() {
+    let opts = PaperOptions {
+        delta: 0.001,
+        observe: Observe::X,
+        seed: 7,
+        ..PaperOptions::default()
+    };
+    check(opts, &paper_options(true), 1.5);
+}
+
+#[test]
+fn removes_the_sensor_offsets_of_eq16_noise() {
+    // δ = 0.01: the offset alone would put the x^2 term 7 % off.
+    let opts = PaperOptions {
+        delta: 0.01,
+        seed: 3,
+        ..PaperOptions::default()
+    };
+    let recording = generate_paper(&opts).to_recording("eq17.csv");
+    let report = identify_recording(&recording, &paper_options(true)).expect("identifies");
+    let (errors, spurious) = score(&report, &TRUTH);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(
+        mean <= 1.0 && errors.iter().all(|e| *e < 2.0) && spurious == 0,
+        "{errors:?} {spurious}"
+    );
+}
+
+#[test]
+fn zero_mean_noise_at_delta_0_1() {
+    let opts = PaperOptions {
+        delta: 0.1,
+        noise: NoiseKind::Uniform0,
+        seed: 5,
+        ..PaperOptions::default()
+    };
+    check(opts, &paper_options(true), 2.0);
+}
+
+#[test]
+#[ignore = "known failure, open in issue 2: the Ω search picks the 4 rad/s harmonic on this 60 s record (it finds 2 rad/s on the 100 s ones); run with --ignored"]
+fn estimates_the_excitation_frequency() {
+    let recording = generate_paper(&PaperOptions {
+        delta: 0.001,
+        t_end: 60.0,
+        ..PaperOptions::default()
+    })
+    .to_recording("eq17.csv");
+    let options = Options {
+        omega: None,
+        harmonics: 1,
+        ..Options::default()
+    };
+    let report = identify_recording(&recording, &options).expect("identifies");
+    assert!(report.omega_estimated);
+    assert!((report.omega - 2.0).abs() < 1e-3, "Ω = {}", report.omega);
+    assert!(
+        report.terms.iter().any(|t| t.term == "cos(2t)"),
+        "{:?}",
+        report.terms
+    );
+}
+
+#[test]
+fn bad_samples_are_counted_and_the_rest_still_identifies() {
+    let mut recording = generate_paper(&PaperOptions {
+        delta: 0.001,
+        ..PaperOptions::default()
+    })
+    .to_recording("eq17.csv");
+    recording.x[5000] = f64::NAN;
+    recording.x[6000] = 1e12;
+    recording.t[7000] = recording.t[6999];
+    let report = identify_recording(&recording, &paper_options(true)).expect("identifies");
+    assert_eq!(report.rejected, 3);
+    let (errors, spurious) = score(&report, &TRUTH);
+    assert!(
+        errors.iter().all(|e| *e < 1.0) && spurious == 0,
+        "{errors:?} {spurious}"
+    );
+}
