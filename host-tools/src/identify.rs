@@ -241,7 +241,6 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         ..config.library
     })
     .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
-    let mut factor: Factor<f64, TERM_CAPACITY> = Factor::new(library.len());
     let mut rows = Vec::new();
     let x = &recording.x;
     let mut start = 0;
@@ -265,7 +264,6 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         if xh.is_finite() && vh.is_finite() && yh.is_finite() {
             let mut row = [0.0; TERM_CAPACITY];
             library.evaluate(xh, vh, 0.0, 0.0, &mut row);
-            factor.update(&row, yh, 1.0);
             rows.push((recording.t[start + (n - 1) / 2], row, yh));
         }
         start += stride;
@@ -275,7 +273,6 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
             "{file}: too few samples to estimate the excitation frequency; give --omega."
         )));
     }
-    let _ = factor;
     let p = library.len();
     // Residual energy of the polynomial library plus sin/cos(ωt): the excitation frequency is
     // the ω that explains most. (The polynomial terms alone absorb much of a harmonic forcing,

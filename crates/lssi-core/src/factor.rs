@@ -271,21 +271,9 @@ impl<T: Real, const P: usize> Factor<T, P> {
             }
         }
         let mut z = self.z;
-        // Each kept column j has nonzeros in rows 0..=j only: rotate them into row p.
-        for p in 0..m {
-            for i in p + 1..=columns[p].min(n - 1) {
-                if a[i][p] == T::ZERO {
-                    continue;
-                }
-                let g = givens(a[p][p], a[i][p]);
-                a[p][p] = g.r;
-                a[i][p] = T::ZERO;
-                for q in p + 1..m {
-                    (a[p][q], a[i][q]) = g.apply(a[p][q], a[i][q]);
-                }
-                (z[p], z[i]) = g.apply(z[p], z[i]);
-            }
-        }
+        // Each kept column j has nonzeros in rows 0..=j only (the rotations keep it so, and
+        // skip the zeros below).
+        triangularise(&mut a, &mut z, n, m);
         // Back substitution, dropping columns whose pivot is negligible against their norm.
         let mut used = support;
         let tolerance = T::EPSILON * T::from_f64(64.0);

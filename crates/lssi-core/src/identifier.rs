@@ -399,7 +399,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         self.long_v2 += (v2 - self.long_v2) / self.long_weight;
         self.x_min = self.x_min.min(row.x);
         self.x_max = self.x_max.max(row.x);
-        if self.warmup.len() < WARMUP_ROWS || self.counters.rows == 0 && !self.warmup.is_empty() {
+        // Until the column scales are known, rows wait in the warm-up buffer; then they are
+        // folded in, in order, and every later row goes straight to the factors.
+        if self.counters.rows == 0 {
             if self.warmup.push(row).is_ok() && self.warmup.len() < WARMUP_ROWS {
                 return;
             }
@@ -408,8 +410,6 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             for r in rows.iter() {
                 self.fold(r);
             }
-            // Keep the (now empty) buffer "full" in spirit: rows go straight to the factors.
-            self.warmup = rows;
             return;
         }
         self.fold(&row);
