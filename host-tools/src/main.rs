@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lssi_host::commands::{bench, generate, identify, info};
+use lssi_host::commands::{bench, generate, identify, info, log, plot, replay};
 use lssi_host::error::CliError;
 
 /// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
@@ -26,6 +26,12 @@ enum Command {
     Identify(identify::IdentifyArgs),
     /// Read a recording (CSV) and summarise it, or say why it cannot be used.
     Info(info::InfoArgs),
+    /// Replay a recording through the device code over a serial link (simulated, QEMU or real).
+    Replay(replay::ReplayArgs),
+    /// Print a telemetry log written by `lssi replay` (text, JSON or CSV).
+    Log(log::LogArgs),
+    /// Draw a recording and its identified model (PNG and SVG).
+    Plot(plot::PlotArgs),
 }
 
 fn run(cli: &Cli) -> Result<(), CliError> {
@@ -34,6 +40,9 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Info(args) => info::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Replay(args) => replay::run(args),
+        Command::Log(args) => log::run(args),
+        Command::Plot(args) => plot::run(args),
     }
 }
 

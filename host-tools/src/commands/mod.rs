@@ -5,3 +5,6 @@ pub mod bench;
 pub mod generate;
 pub mod identify;
 pub mod info;
+pub mod log;
+pub mod plot;
+pub mod replay;
