@@ -8,6 +8,11 @@ use serde::{Deserialize, Serialize};
 /// A message from the device to the host.
 ///
 /// The variant order is the wire discriminant (0..=5); see the README before changing it.
+///
+/// What the device sends when is `lssi-device`'s contract (see its crate docs): every
+/// host command gets exactly one reply, except [`HostMsg::Query`](crate::HostMsg::Query),
+/// answered by a [`DeviceMsg::Model`] (when a model exists) and then always a
+/// [`DeviceMsg::Health`]; `Model` (scheduled) and `Log` also come unsolicited.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[allow(
@@ -28,15 +33,18 @@ pub enum DeviceMsg {
         /// Most samples per batch the device takes.
         max_batch: u16,
     },
-    /// Batch `seq` was applied (or was a duplicate of one already applied).
+    /// Batch `seq` was applied (or was a duplicate of one already applied); or, with
+    /// `seq` = [`CONTROL_SEQ`](crate::CONTROL_SEQ), a `Configure` or `Reset` was carried out.
     Ack {
-        /// Sequence number of the batch.
+        /// Sequence number of the batch, or [`CONTROL_SEQ`](crate::CONTROL_SEQ).
         seq: u32,
     },
     /// A frame or command was refused; nothing it carried was applied.
     Nak {
-        /// The refused batch's sequence number when the device could read it, otherwise the
-        /// sequence number it expects next.
+        /// Depends on the reason: [`NakReason::OutOfOrder`] and [`NakReason::Decode`]: the
+        /// sequence number the device expects next (resend from there);
+        /// [`NakReason::NotConfigured`] for a batch: the batch's; a refused command
+        /// (`Configure`, `Query`): [`CONTROL_SEQ`](crate::CONTROL_SEQ).
         seq: u32,
         /// Why.
         reason: NakReason,
@@ -45,24 +53,34 @@ pub enum DeviceMsg {
     Model(ModelSnapshot),
     /// Counters that tell whether the device keeps up.
     Health {
-        /// Samples applied since the last reset.
-        samples: u32,
-        /// Samples rejected (non-finite, out of order in time).
-        rejected: u32,
-        /// Samples waiting in the ring buffer.
+        /// Samples the identifier accepted since it was (re)built.
+        samples: u64,
+        /// Samples it rejected (non-finite, out of range, out of order in time, wrong channels).
+        rejected: u64,
+        /// Samples in the derivative window (the ring buffer's fill).
         buffer_fill: u16,
-        /// Mean per-sample cost, in `cost_unit`.
+        /// Mean per-sample cost, in `cost_unit` (pushes that ran a screening excluded).
         cost_mean: u32,
-        /// Largest per-sample cost, in `cost_unit`.
+        /// Largest per-sample cost, in `cost_unit` (pushes that ran a screening excluded).
         cost_max: u32,
-        /// Unit of `cost_mean` and `cost_max`.
+        /// Unit of every cost field.
         cost_unit: CostUnit,
         /// A counter the device's main loop bumps every pass; stuck means hung.
         watchdog: u32,
-        /// Received frames dropped for a bad CRC or COBS.
+        /// Received frames dropped for a bad CRC or COBS, or for overrunning the buffer.
         crc_errors: u32,
         /// Received frames that decoded.
         frames_ok: u32,
+        /// Cost of the latest screening (threshold sweep + MES), in `cost_unit`.
+        screen_cost: u32,
+        /// Largest cost of a screening, in `cost_unit`.
+        screen_cost_max: u32,
+        /// Screenings run (scheduled and queried).
+        screenings: u32,
+        /// Sample batches received again after they were applied (acked, not re-applied).
+        duplicates: u32,
+        /// Frames that passed the CRC but did not decode (e.g. another protocol version).
+        decode_errors: u32,
     },
     /// Raw defmt frames, decoded on the host with the firmware's ELF.
     Log {
@@ -78,7 +96,11 @@ impl MaxSize for DeviceMsg {
         u32::POSTCARD_MAX_SIZE,
         u32::POSTCARD_MAX_SIZE + NakReason::POSTCARD_MAX_SIZE,
         ModelSnapshot::POSTCARD_MAX_SIZE,
-        7 * u32::POSTCARD_MAX_SIZE + u16::POSTCARD_MAX_SIZE + CostUnit::POSTCARD_MAX_SIZE,
+        2 * u64::POSTCARD_MAX_SIZE
+            + u16::POSTCARD_MAX_SIZE
+            + 2 * u32::POSTCARD_MAX_SIZE
+            + CostUnit::POSTCARD_MAX_SIZE
+            + 8 * u32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
     ]);
 }
@@ -177,20 +199,35 @@ pub struct ModelSnapshot {
     pub k_x: u8,
     /// Neighbours K of the smoothing of v.
     pub k_v: u8,
-    /// Base angular frequency Ω in rad/s (configured or estimated).
-    pub omega: f32,
-    /// Linearised resonance in Hz, when the stiffness makes one.
-    pub resonance_hz: Option<f32>,
-    /// Position ± of the wells, when the model is bistable.
-    pub wells: Option<f32>,
+    /// Base angular frequency Ω in rad/s, as configured.
+    pub omega: f64,
+    /// Linearised resonance in Hz, when the stiffness makes one (`Model::resonance_hz`).
+    pub resonance_hz: Option<f64>,
+    /// Position ± of the wells, when the model is bistable (`Model::wells`).
+    pub wells: Option<f64>,
     /// Estimated sensor offset of x, removed before fitting.
     pub offset_x: f32,
     /// Estimated offset of v, removed before fitting.
     pub offset_v: f32,
     /// Samples the model has seen.
-    pub samples: u32,
+    pub samples: u64,
     /// Samples rejected.
-    pub rejected: u32,
+    pub rejected: u64,
+    /// Regression rows folded into the fit.
+    pub rows: u64,
+    /// Why the snapshot was sent.
+    pub cause: SnapshotCause,
+}
+
+/// Why a [`ModelSnapshot`] was sent.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SnapshotCause {
+    /// The identifier's own screening, every `screening_period` samples (telemetry).
+    #[default]
+    Scheduled,
+    /// The answer to a [`HostMsg::Query`](crate::HostMsg::Query).
+    Query,
 }
 
 impl MaxSize for ModelSnapshot {
@@ -200,8 +237,9 @@ impl MaxSize for ModelSnapshot {
         + u8::POSTCARD_MAX_SIZE // selected
         + u8::POSTCARD_MAX_SIZE // k_x
         + u8::POSTCARD_MAX_SIZE // k_v
-        + f32::POSTCARD_MAX_SIZE
-        + 2 * <Option<f32>>::POSTCARD_MAX_SIZE
-        + 2 * f32::POSTCARD_MAX_SIZE
-        + 2 * u32::POSTCARD_MAX_SIZE;
+        + f64::POSTCARD_MAX_SIZE // omega
+        + 2 * <Option<f64>>::POSTCARD_MAX_SIZE // resonance_hz, wells
+        + 2 * f32::POSTCARD_MAX_SIZE // offsets
+        + 3 * u64::POSTCARD_MAX_SIZE // samples, rejected, rows
+        + SnapshotCause::POSTCARD_MAX_SIZE;
 }

@@ -43,11 +43,14 @@ pub enum PolyFamily {
     OddFamilies,
 }
 
-/// The identifier's configuration as the host sends it.
+/// The identifier's configuration as the host sends it: `lssi_core::Config`, field for field.
 ///
-/// A plain record: the device validates it once, when it builds the identifier, and naks
-/// [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it cannot. New fields go at
-/// the end (and bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION)).
+/// The device rebuilds exactly the `Config` the host computed (`lssi_device::wire` holds
+/// the conversions both sides use), so that the device's identifier and the host's
+/// `lssi identify --f32` compute bit for bit the same model. Every float travels with the
+/// width it has in `Config`. A plain record: the device validates it once, when it builds
+/// the identifier, and naks [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it
+/// cannot. Field changes bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct WireConfig {
@@ -55,6 +58,8 @@ pub struct WireConfig {
     pub sample_period_s: f64,
     /// Window of the local derivative estimate, in samples.
     pub window: u16,
+    /// Degree of the local polynomial of the derivative estimate.
+    pub derivative_degree: u8,
     /// Highest total order of the (x, v) monomials.
     pub poly_order: u8,
     /// Which monomials.
@@ -63,22 +68,30 @@ pub struct WireConfig {
     pub constant: bool,
     /// sin/cos(kΩt) for k = 1..=`harmonics` (0 leaves them out).
     pub harmonics: u8,
-    /// Base angular frequency Ω in rad/s; `None` lets the device estimate it.
-    pub omega: Option<f32>,
     /// Whether the measured excitation u is a candidate term (`LibraryConfig::input` in lssi-core).
     pub use_u: bool,
+    /// Base angular frequency Ω in rad/s, as the host chose or estimated it (ignored
+    /// without harmonics; the device does not estimate it).
+    pub omega: f64,
     /// Whether the samples carry a measured velocity v (otherwise it is estimated from x).
     pub has_v: bool,
     /// Whether the samples carry a measured excitation u.
     pub has_u: bool,
     /// Memory time constant of the forgetting factor in seconds; `None` forgets nothing.
-    pub memory_time_s: Option<f32>,
+    pub memory_time_s: Option<f64>,
     /// Samples between thresholding sweeps (M).
     pub screening_period: u32,
-    /// Size of the threshold grid (n solutions per sweep).
+    /// Points of the logarithmic threshold grid.
     pub thresholds: u8,
     /// Whether k-neighbour smoothing is on.
     pub smoothing: bool,
     /// Use every `row_stride`-th sample as a regression row.
-    pub row_stride: u8,
+    pub row_stride: u16,
+    /// MES parsimony: the sparsest solution within this fraction of the least held-out
+    /// error is chosen.
+    pub parsimony: f64,
+    /// Whether the sensor offsets of x and v are estimated and removed.
+    pub offsets: bool,
+    /// A sample whose |x|, |v| or |u| exceeds this is rejected.
+    pub max_abs: f64,
 }

@@ -51,7 +51,8 @@ pub mod size;
 
 pub use batch::{Channels, SampleBatch, Samples, WireSample};
 pub use device::{
-    CostUnit, DeviceMsg, ModelSnapshot, NakReason, SolutionSummary, TermCode, TermKind,
+    CostUnit, DeviceMsg, ModelSnapshot, NakReason, SnapshotCause, SolutionSummary, TermCode,
+    TermKind,
 };
 pub use error::Error;
 #[cfg(feature = "std")]
@@ -68,7 +69,12 @@ pub use postcard::experimental::max_size::MaxSize;
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
+
+/// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
+/// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0
+/// after every `Configure` and `Reset` and never reach it.
+pub const CONTROL_SEQ: u32 = u32::MAX;
 
 /// Most samples in one [`SampleBatch`].
 ///

@@ -4,8 +4,8 @@ mod common;
 
 use common::frame;
 use lssi_proto::{
-    Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, SampleBatch, WireSample,
-    decode_frame,
+    Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, PROTOCOL_VERSION, SampleBatch,
+    WireSample, decode_frame,
 };
 
 #[test]
@@ -13,17 +13,18 @@ fn crc_is_crc32c() {
     // The catalogue's check value of CRC-32C (iSCSI): "123456789" → 0xE3069283.
     let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
     assert_eq!(crc.checksum(b"123456789"), 0xE306_9283);
-    // The Hello frame's CRC, over its payload 00 01.
-    assert_eq!(crc.checksum(&[0x00, 0x01]), 0x030A_F4D1);
+    // The Hello frame's CRC, over its payload 00 02.
+    assert_eq!(crc.checksum(&[0x00, 0x02]), 0x105A_0725);
 }
 
 #[test]
 fn golden_host_frames() {
+    assert_eq!(PROTOCOL_VERSION, 2, "update the README's worked examples");
     assert_eq!(
         frame(&HostMsg::Hello {
-            protocol_version: 1
+            protocol_version: 2
         }),
-        [0x01, 0x06, 0x01, 0xD1, 0xF4, 0x0A, 0x03, 0x00]
+        [0x01, 0x06, 0x02, 0x25, 0x07, 0x5A, 0x10, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),

@@ -44,7 +44,6 @@ fn every_host_message_round_trips() {
         messages.push(HostMsg::Samples(SampleBatch::new(0, channels)));
     }
     let mut config = worst_config();
-    config.omega = None;
     config.memory_time_s = None;
     messages.push(HostMsg::Configure(config));
     for message in &messages {

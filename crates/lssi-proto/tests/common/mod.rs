@@ -4,7 +4,7 @@
 use lssi_proto::{
     Channels, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, MAX_BATCH, MAX_LOG, MAX_SOLUTIONS,
     MAX_TERMS, Message, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch,
-    SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
+    SnapshotCause, SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
 };
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -74,38 +74,45 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
             any_f64(),
             any::<u16>(),
             any::<u8>(),
+            any::<u8>(),
             poly_family(),
             any::<bool>(),
             any::<u8>(),
         ),
+        (any::<bool>(), any_f64(), any::<bool>(), any::<bool>()),
         (
-            proptest::option::of(any_f32()),
-            any::<bool>(),
-            any::<bool>(),
-            any::<bool>(),
-        ),
-        (
-            proptest::option::of(any_f32()),
+            proptest::option::of(any_f64()),
             any::<u32>(),
             any::<u8>(),
             any::<bool>(),
-            any::<u8>(),
+            any::<u16>(),
         ),
+        (any_f64(), any::<bool>(), any_f64()),
     )
         .prop_map(
             |(
-                (sample_period_s, window, poly_order, poly_family, constant, harmonics),
-                (omega, use_u, has_v, has_u),
+                (
+                    sample_period_s,
+                    window,
+                    derivative_degree,
+                    poly_order,
+                    poly_family,
+                    constant,
+                    harmonics,
+                ),
+                (use_u, omega, has_v, has_u),
                 (memory_time_s, screening_period, thresholds, smoothing, row_stride),
+                (parsimony, offsets, max_abs),
             )| WireConfig {
                 sample_period_s,
                 window,
+                derivative_degree,
                 poly_order,
                 poly_family,
                 constant,
                 harmonics,
-                omega,
                 use_u,
+                omega,
                 has_v,
                 has_u,
                 memory_time_s,
@@ -113,6 +120,9 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
                 thresholds,
                 smoothing,
                 row_stride,
+                parsimony,
+                offsets,
+                max_abs,
             },
         )
 }
@@ -176,12 +186,13 @@ pub fn snapshot() -> impl Strategy<Value = ModelSnapshot> {
         vec(term, 0..=MAX_TERMS),
         vec(any_f32(), 0..=MAX_TERMS),
         vec(solution, 0..=MAX_SOLUTIONS),
-        (any::<u8>(), any::<u8>(), any::<u8>(), any_f32()),
+        (any::<u8>(), any::<u8>(), any::<u8>(), any_f64()),
         (
-            proptest::option::of(any_f32()),
-            proptest::option::of(any_f32()),
+            proptest::option::of(any_f64()),
+            proptest::option::of(any_f64()),
         ),
-        (any_f32(), any_f32(), any::<u32>(), any::<u32>()),
+        (any_f32(), any_f32(), any::<u64>(), any::<u64>()),
+        (any::<u64>(), snapshot_cause()),
     )
         .prop_map(
             |(
@@ -191,6 +202,7 @@ pub fn snapshot() -> impl Strategy<Value = ModelSnapshot> {
                 (selected, k_x, k_v, omega),
                 (resonance_hz, wells),
                 rest,
+                (rows, cause),
             )| {
                 let (offset_x, offset_v, samples, rejected) = rest;
                 ModelSnapshot {
@@ -207,9 +219,15 @@ pub fn snapshot() -> impl Strategy<Value = ModelSnapshot> {
                     offset_v,
                     samples,
                     rejected,
+                    rows,
+                    cause,
                 }
             },
         )
+}
+
+pub fn snapshot_cause() -> impl Strategy<Value = SnapshotCause> {
+    prop_oneof![Just(SnapshotCause::Scheduled), Just(SnapshotCause::Query)]
 }
 
 pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
@@ -229,18 +247,26 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
         snapshot().prop_map(DeviceMsg::Model),
         (
             (
-                any::<u32>(),
-                any::<u32>(),
+                any::<u64>(),
+                any::<u64>(),
                 any::<u16>(),
                 any::<u32>(),
                 any::<u32>()
             ),
             (cost_unit(), any::<u32>(), any::<u32>(), any::<u32>()),
+            (
+                any::<u32>(),
+                any::<u32>(),
+                any::<u32>(),
+                any::<u32>(),
+                any::<u32>()
+            ),
         )
             .prop_map(
                 |(
                     (samples, rejected, buffer_fill, cost_mean, cost_max),
                     (cost_unit, watchdog, crc_errors, frames_ok),
+                    (screen_cost, screen_cost_max, screenings, duplicates, decode_errors),
                 )| DeviceMsg::Health {
                     samples,
                     rejected,
@@ -251,6 +277,11 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                     watchdog,
                     crc_errors,
                     frames_ok,
+                    screen_cost,
+                    screen_cost_max,
+                    screenings,
+                    duplicates,
+                    decode_errors,
                 },
             ),
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
@@ -279,19 +310,23 @@ pub fn worst_config() -> WireConfig {
     WireConfig {
         sample_period_s: 1e-3,
         window: u16::MAX,
+        derivative_degree: u8::MAX,
         poly_order: u8::MAX,
         poly_family: PolyFamily::OddFamilies,
         constant: true,
         harmonics: u8::MAX,
-        omega: Some(21.4),
         use_u: true,
+        omega: 21.4,
         has_v: true,
         has_u: true,
         memory_time_s: Some(10.0),
         screening_period: u32::MAX,
         thresholds: u8::MAX,
         smoothing: true,
-        row_stride: u8::MAX,
+        row_stride: u16::MAX,
+        parsimony: 0.05,
+        offsets: true,
+        max_abs: 1e9,
     }
 }
 
@@ -318,8 +353,10 @@ pub fn worst_snapshot() -> ModelSnapshot {
         wells: Some(2.1e-3),
         offset_x: 1e-4,
         offset_v: -1e-4,
-        samples: u32::MAX,
-        rejected: u32::MAX,
+        samples: u64::MAX,
+        rejected: u64::MAX,
+        rows: u64::MAX,
+        cause: SnapshotCause::Query,
     }
 }
 
@@ -351,8 +388,8 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
         },
         DeviceMsg::Model(worst_snapshot()),
         DeviceMsg::Health {
-            samples: u32::MAX,
-            rejected: u32::MAX,
+            samples: u64::MAX,
+            rejected: u64::MAX,
             buffer_fill: u16::MAX,
             cost_mean: u32::MAX,
             cost_max: u32::MAX,
@@ -360,6 +397,11 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
             watchdog: u32::MAX,
             crc_errors: u32::MAX,
             frames_ok: u32::MAX,
+            screen_cost: u32::MAX,
+            screen_cost_max: u32::MAX,
+            screenings: u32::MAX,
+            duplicates: u32::MAX,
+            decode_errors: u32::MAX,
         },
         DeviceMsg::Log {
             bytes: core::iter::repeat_n(0xA5, MAX_LOG).collect(),

@@ -1,0 +1,323 @@
+//! Conversions between lssi-core's types and their wire forms, used by both ends of the link.
+//!
+//! The host computes an `lssi_core::Config` from a recording (`lssi identify`'s
+//! `configure()`), sends it with [`config_to_wire`], and the device rebuilds exactly that
+//! `Config` with [`config_from_wire`]: every field travels at its own width, so the round
+//! trip is the identity (bit for bit, NaN payloads included).
+//!
+//! ```
+//! use lssi_core::Config;
+//! use lssi_device::wire::{config_from_wire, config_to_wire};
+//!
+//! let config = Config { omega: 21.4, memory: Some(30.0), ..Config::default() };
+//! let wire = config_to_wire(&config).unwrap();
+//! assert_eq!(config_from_wire(&wire), config);
+//! ```
+//!
+//! The device reports the model with [`snapshot`]; the host turns the snapshot back into an
+//! `lssi_core::Model<f32, P>` with [`model_from_snapshot`] and reports it with the same
+//! code as `lssi identify` (the model's derived figures, resonance and wells, come out the
+//! same because the coefficients are the device's f32 values, bit for bit).
+
+use core::fmt;
+use lssi_core::library::Library;
+use lssi_core::{Channels, Config, LibraryConfig, Model, PolyFamily, Real, Solution, Term};
+use lssi_proto::{
+    MAX_SOLUTIONS, MAX_TERMS, ModelSnapshot, SnapshotCause, SolutionSummary, TermCode, TermKind,
+    WireConfig,
+};
+
+/// Why a value cannot cross the link, or does not fit the other end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum WireError {
+    /// The derivative window does not fit the wire's `u16` (or the device's capacity).
+    Window {
+        /// Requested, in samples.
+        window: usize,
+        /// Largest allowed.
+        max: usize,
+    },
+    /// The library has more terms than the wire (or the device) carries.
+    TooManyTerms {
+        /// Terms the model or configuration has.
+        terms: usize,
+        /// Room there is.
+        capacity: usize,
+    },
+    /// The model has more solutions than a snapshot carries.
+    TooManySolutions(usize),
+    /// A snapshot's term code names no lssi-core term.
+    BadTerm(TermCode),
+    /// A snapshot has a different number of coefficients than terms.
+    CoefficientCount {
+        /// Terms in the snapshot.
+        terms: usize,
+        /// Coefficients in the snapshot.
+        coefficients: usize,
+    },
+}
+
+impl fmt::Display for WireError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            WireError::Window { window, max } => write!(
+                f,
+                "the derivative window is {window} samples, but at most {max} fit the device"
+            ),
+            WireError::TooManyTerms { terms, capacity } => write!(
+                f,
+                "the library has {terms} terms, but at most {capacity} fit the device and the wire"
+            ),
+            WireError::TooManySolutions(n) => write!(
+                f,
+                "the model has {n} solutions, but a snapshot carries at most {MAX_SOLUTIONS}"
+            ),
+            WireError::BadTerm(code) => write!(
+                f,
+                "the snapshot's term code {:?} ({}, {}) is not a library term",
+                code.kind, code.a, code.b
+            ),
+            WireError::CoefficientCount {
+                terms,
+                coefficients,
+            } => write!(
+                f,
+                "the snapshot has {coefficients} coefficients for {terms} terms"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for WireError {}
+
+/// The wire form of a configuration; fails only for a window beyond `u16::MAX` samples.
+pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
+    let window = u16::try_from(config.window).map_err(|_| WireError::Window {
+        window: config.window,
+        max: usize::from(u16::MAX),
+    })?;
+    let library = &config.library;
+    Ok(WireConfig {
+        sample_period_s: config.sample_period,
+        window,
+        derivative_degree: config.derivative_degree,
+        poly_order: library.poly_order,
+        poly_family: family_to_wire(library.family),
+        constant: library.constant,
+        harmonics: library.harmonics,
+        use_u: library.input,
+        omega: config.omega,
+        has_v: config.channels.velocity,
+        has_u: config.channels.input,
+        memory_time_s: config.memory,
+        screening_period: config.screening_period,
+        thresholds: config.thresholds,
+        smoothing: config.smoothing,
+        row_stride: config.row_stride,
+        parsimony: config.parsimony,
+        offsets: config.offsets,
+        max_abs: config.max_abs,
+    })
+}
+
+/// The configuration a [`WireConfig`] describes, unvalidated (`Identifier::new` validates).
+pub fn config_from_wire(wire: &WireConfig) -> Config {
+    Config {
+        sample_period: wire.sample_period_s,
+        window: usize::from(wire.window),
+        derivative_degree: wire.derivative_degree,
+        library: LibraryConfig {
+            poly_order: wire.poly_order,
+            family: family_from_wire(wire.poly_family),
+            constant: wire.constant,
+            harmonics: wire.harmonics,
+            input: wire.use_u,
+        },
+        omega: wire.omega,
+        channels: Channels {
+            velocity: wire.has_v,
+            input: wire.has_u,
+        },
+        memory: wire.memory_time_s,
+        screening_period: wire.screening_period,
+        thresholds: wire.thresholds,
+        smoothing: wire.smoothing,
+        row_stride: wire.row_stride,
+        parsimony: wire.parsimony,
+        offsets: wire.offsets,
+        max_abs: wire.max_abs,
+    }
+}
+
+/// Whether `config` fits a device that announced `window_capacity` and `max_terms` in its
+/// `HelloReply`: the host's check before `Configure`, with an error that says what is wrong
+/// (the device itself can only nak `BadConfig`).
+pub fn fits(config: &Config, window_capacity: u16, max_terms: u8) -> Result<(), WireError> {
+    if config.window > usize::from(window_capacity) {
+        return Err(WireError::Window {
+            window: config.window,
+            max: usize::from(window_capacity),
+        });
+    }
+    let terms = Library::<32>::count(&config.library);
+    let capacity = usize::from(max_terms).min(MAX_TERMS);
+    if terms > capacity {
+        return Err(WireError::TooManyTerms { terms, capacity });
+    }
+    Ok(())
+}
+
+/// lssi-core's polynomial family as the wire names it.
+pub const fn family_to_wire(family: PolyFamily) -> lssi_proto::PolyFamily {
+    match family {
+        PolyFamily::All => lssi_proto::PolyFamily::All,
+        PolyFamily::Families => lssi_proto::PolyFamily::Families,
+        PolyFamily::OddFamilies => lssi_proto::PolyFamily::OddFamilies,
+    }
+}
+
+/// The wire's polynomial family as lssi-core names it.
+pub const fn family_from_wire(family: lssi_proto::PolyFamily) -> PolyFamily {
+    match family {
+        lssi_proto::PolyFamily::All => PolyFamily::All,
+        lssi_proto::PolyFamily::Families => PolyFamily::Families,
+        lssi_proto::PolyFamily::OddFamilies => PolyFamily::OddFamilies,
+    }
+}
+
+/// A term's wire code.
+pub const fn term_code(term: Term) -> TermCode {
+    let (kind, a, b) = match term {
+        Term::Constant => (TermKind::Constant, 0, 0),
+        Term::Monomial { px, pv } => (TermKind::Monomial, px, pv),
+        Term::Sin(k) => (TermKind::Sin, k, 0),
+        Term::Cos(k) => (TermKind::Cos, k, 0),
+        Term::Input => (TermKind::Input, 0, 0),
+    };
+    TermCode { kind, a, b }
+}
+
+/// The term a wire code names; `None` for codes [`term_code`] never makes.
+pub const fn term_from_code(code: TermCode) -> Option<Term> {
+    match (code.kind, code.a, code.b) {
+        (TermKind::Constant, 0, 0) => Some(Term::Constant),
+        (TermKind::Monomial, px, pv) if px > 0 || pv > 0 => Some(Term::Monomial { px, pv }),
+        (TermKind::Sin, k, 0) if k > 0 => Some(Term::Sin(k)),
+        (TermKind::Cos, k, 0) if k > 0 => Some(Term::Cos(k)),
+        (TermKind::Input, 0, 0) => Some(Term::Input),
+        _ => None,
+    }
+}
+
+/// The snapshot of a model: exact for `T = f32` (a device's), rounded to f32 for f64.
+///
+/// Fails when the model has more terms than [`MAX_TERMS`] (a host library of up to 32;
+/// never on a device, whose `P` is at most [`MAX_TERMS`]).
+pub fn snapshot<T: Real, const P: usize>(
+    model: &Model<T, P>,
+    cause: SnapshotCause,
+) -> Result<ModelSnapshot, WireError> {
+    let n = model.terms.len();
+    let too_many = WireError::TooManyTerms {
+        terms: n,
+        capacity: MAX_TERMS,
+    };
+    let mut terms = heapless::Vec::new();
+    let mut coefficients = heapless::Vec::new();
+    for (&term, &c) in model.terms.iter().zip(model.coefficients.iter()) {
+        terms.push(term_code(term)).map_err(|_| too_many)?;
+        coefficients.push(to_f32(c)).map_err(|_| too_many)?;
+    }
+    let mut solutions = heapless::Vec::new();
+    for s in model.solutions.iter() {
+        let summary = SolutionSummary {
+            threshold: to_f32(s.threshold),
+            mean_error: to_f32(s.mean_error),
+            support: s.support,
+        };
+        solutions
+            .push(summary)
+            .map_err(|_| WireError::TooManySolutions(model.solutions.len()))?;
+    }
+    Ok(ModelSnapshot {
+        terms,
+        coefficients,
+        solutions,
+        // At most MAX_SOLUTIONS = 32.
+        selected: u8::try_from(model.selected).unwrap_or(u8::MAX),
+        k_x: model.k.0,
+        k_v: model.k.1,
+        omega: model.omega,
+        resonance_hz: model.resonance_hz(),
+        wells: model.wells(),
+        offset_x: to_f32(model.offset_x),
+        offset_v: to_f32(model.offset_v),
+        samples: model.samples,
+        rejected: model.rejected,
+        rows: model.rows,
+        cause,
+    })
+}
+
+/// The lssi-core model a snapshot describes (f32, as the device computed it), so that the
+/// host can report it with the code it reports its own models with.
+pub fn model_from_snapshot<const P: usize>(
+    snapshot: &ModelSnapshot,
+) -> Result<Model<f32, P>, WireError> {
+    let n = snapshot.terms.len();
+    if snapshot.coefficients.len() != n {
+        return Err(WireError::CoefficientCount {
+            terms: n,
+            coefficients: snapshot.coefficients.len(),
+        });
+    }
+    let too_many = WireError::TooManyTerms {
+        terms: n,
+        capacity: P,
+    };
+    let mut terms = heapless::Vec::new();
+    let mut coefficients = [0.0f32; P];
+    for ((&code, &c), slot) in snapshot
+        .terms
+        .iter()
+        .zip(snapshot.coefficients.iter())
+        .zip(coefficients.iter_mut())
+    {
+        let term = term_from_code(code).ok_or(WireError::BadTerm(code))?;
+        terms.push(term).map_err(|_| too_many)?;
+        *slot = c;
+    }
+    if terms.len() != n {
+        return Err(too_many);
+    }
+    let mut solutions = heapless::Vec::new();
+    for s in snapshot.solutions.iter() {
+        let solution = Solution {
+            threshold: s.threshold,
+            mean_error: s.mean_error,
+            support: s.support,
+        };
+        solutions
+            .push(solution)
+            .map_err(|_| WireError::TooManySolutions(snapshot.solutions.len()))?;
+    }
+    Ok(Model {
+        terms,
+        coefficients,
+        solutions,
+        selected: usize::from(snapshot.selected),
+        k: (snapshot.k_x, snapshot.k_v),
+        omega: snapshot.omega,
+        offset_x: snapshot.offset_x,
+        offset_v: snapshot.offset_v,
+        samples: snapshot.samples,
+        rejected: snapshot.rejected,
+        rows: snapshot.rows,
+    })
+}
+
+fn to_f32<T: Real>(value: T) -> f32 {
+    value.to_f64() as f32
+}
