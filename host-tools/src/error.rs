@@ -59,6 +59,11 @@ pub enum CliError {
     },
     /// The identifier cannot use a recording (a sentence naming the file).
     Identify(String),
+    /// An input other than a recording cannot be used (a telemetry log, a firmware image, a
+    /// configuration the device refuses): a sentence naming it.
+    Input(String),
+    /// The device or the link to it failed while working: a sentence naming the port.
+    Device(String),
     /// An output file could not be written.
     Write {
         /// The file.
@@ -76,8 +81,9 @@ impl CliError {
             | CliError::BadFlag { .. }
             | CliError::BadOutput { .. }
             | CliError::Diverged { .. }
-            | CliError::Identify(_) => EXIT_BAD_INPUT,
-            CliError::Write { .. } => EXIT_FAILURE,
+            | CliError::Identify(_)
+            | CliError::Input(_) => EXIT_BAD_INPUT,
+            CliError::Write { .. } | CliError::Device(_) => EXIT_FAILURE,
         }
     }
 
@@ -95,7 +101,9 @@ impl fmt::Display for CliError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             CliError::Recording(error) => error.fmt(f),
-            CliError::Identify(sentence) => f.write_str(sentence),
+            CliError::Identify(sentence)
+            | CliError::Input(sentence)
+            | CliError::Device(sentence) => f.write_str(sentence),
             CliError::BadFlag {
                 flag,
                 value,
@@ -125,7 +133,9 @@ impl std::error::Error for CliError {
             CliError::BadFlag { .. }
             | CliError::BadOutput { .. }
             | CliError::Diverged { .. }
-            | CliError::Identify(_) => None,
+            | CliError::Identify(_)
+            | CliError::Input(_)
+            | CliError::Device(_) => None,
         }
     }
 }

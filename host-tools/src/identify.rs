@@ -131,6 +131,10 @@ pub struct Report {
     pub sample_period: f64,
     /// `f32` or `f64`.
     pub precision: String,
+    /// The selected model as library terms and coefficients (physical units, inactive terms
+    /// left out), for [`crate::simulate`]; not part of the JSON.
+    #[serde(skip)]
+    pub model: Vec<(Term, f64)>,
 }
 
 /// The configuration `identify` derives from a recording and the options.
@@ -323,24 +327,43 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         }
     }
     let peaks = distinct;
-    let best = peaks
+    // Each candidate is refined before they are compared: on a record of T seconds a bin is
+    // 2π/T wide, and half a bin of phase drift spoils the fit of the true line more than a
+    // harmonic's fit is spoiled (a 60 s record then prefers 2Ω to Ω).
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let refine = |k: usize| {
+        let (mut lo, mut hi) = (bin_omega(k.saturating_sub(1)), bin_omega(k + 1));
+        let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        let (mut fa, mut fb) = (rss(a), rss(b));
+        for _ in 0..24 {
+            if fa < fb {
+                hi = b;
+                b = a;
+                fb = fa;
+                a = hi - g * (hi - lo);
+                fa = rss(a);
+            } else {
+                lo = a;
+                a = b;
+                fa = fb;
+                b = lo + g * (hi - lo);
+                fb = rss(b);
+            }
+        }
+        let w = 0.5 * (lo + hi);
+        (w, rss(w))
+    };
+    peaks
         .iter()
-        .map(|&k| (k, rss(bin_omega(k))))
+        .take(8)
+        .map(|&k| refine(k))
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(k, _)| k)
+        .map(|(w, _)| w)
         .ok_or_else(|| {
             IdentifyError(format!(
                 "{file}: x'' has no spectral peak to take for the excitation; give --omega."
             ))
-        })?;
-    // Golden-section refinement of the fit around the chosen bin.
-    let (mut lo, mut hi) = (bin_omega(best - 1), bin_omega(best + 1));
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    for _ in 0..30 {
-        let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if rss(a) < rss(b) { hi = b } else { lo = a }
-    }
-    Ok(0.5 * (lo + hi))
+        })
 }
 
 /// Runs a recording through the identifier in precision `T`.
@@ -390,7 +413,8 @@ fn names(terms: &[Term], support: u32, omega: f64) -> Vec<String> {
         .collect()
 }
 
-fn report<T: Real, const P: usize>(
+/// The report of a model: what [`run`] reports, and `lssi replay` for a device's model.
+pub fn report<T: Real, const P: usize>(
     model: &lssi_core::Model<T, P>,
     config: &Config,
     omega_estimated: bool,
@@ -438,6 +462,13 @@ fn report<T: Real, const P: usize>(
         degree: config.derivative_degree,
         sample_period: config.sample_period,
         precision: precision.to_string(),
+        model: model
+            .terms
+            .iter()
+            .zip(model.coefficients.iter())
+            .filter(|(_, c)| **c != T::ZERO)
+            .map(|(t, c)| (*t, c.to_f64()))
+            .collect(),
     }
 }
 

@@ -95,7 +95,6 @@ fn zero_mean_noise_at_delta_0_1() {
 }
 
 #[test]
-#[ignore = "known failure, open in issue 2: the Ω search picks the 4 rad/s harmonic on this 60 s record (it finds 2 rad/s on the 100 s ones); run with --ignored"]
 fn estimates_the_excitation_frequency() {
     let recording = generate_paper(&PaperOptions {
         delta: 0.001,

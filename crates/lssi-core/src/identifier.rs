@@ -144,6 +144,15 @@ pub struct Identifier<T: Real, const W: usize, const P: usize> {
     since_row: u16,
     smooth_x: KnnSmoother<T>,
     smooth_v: KnnSmoother<T>,
+    /// Whether each channel's smoothing is applied (decided from ε(K) against the noise).
+    smoothing_on: (bool, bool),
+    /// Σ(Δ⁴x)², Σ(Δ⁴v)² over the rows and their count: the white-noise variance of the raw
+    /// channels is Σ/(70·count).
+    d4: (T, T, T),
+    /// ‖h‖² of the filters that make x̂ and v̂ from the raw channels.
+    gains: (T, T),
+    /// Σx̂², Σv̂² over the same rows as `d4`.
+    power: (T, T),
     delay: [(T, T, f64); DELAY],
     delay_len: usize,
     delay_head: usize,
@@ -185,6 +194,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             min: 0,
             max: W,
         })?;
+        let norm = |h: &[T]| h.iter().fold(T::ZERO, |a, &v| a + v * v);
+        let v_order = if config.channels.velocity { 0 } else { 1 };
+        let gains = (norm(taps.taps(0)), norm(taps.taps(v_order)));
         let n = library.len();
         let stride = usize::from(config.row_stride);
         let block_len = (2 * config.window / stride).max(16) as u64;
@@ -203,6 +215,10 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             since_row: 0,
             smooth_x: KnnSmoother::new(),
             smooth_v: KnnSmoother::new(),
+            smoothing_on: (false, false),
+            d4: (T::ZERO, T::ZERO, T::ZERO),
+            gains,
+            power: (T::ZERO, T::ZERO),
             delay: [(T::ZERO, T::ZERO, 0.0); DELAY],
             delay_len: 0,
             delay_head: 0,
@@ -309,9 +325,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             // The periodic screening also re-chooses K from ε(K) (the paper's Fig. 4); a
             // screening on request does not, so asking for a model changes nothing after it.
             if self.counters.screenings != before {
-                let keep = T::from_f64(0.5);
-                self.smooth_x.choose_k(keep);
-                self.smooth_v.choose_k(keep);
+                self.adapt_smoothing();
             }
             return Ok(screened);
         }
@@ -340,6 +354,49 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     }
 
     /// Forgets the window (after a gap): the factors and statistics are kept.
+    /// Re-chooses K per channel from ε(K), and decides whether the smoothing is applied.
+    ///
+    /// What the smoothing removes is second order: noise in a regressor biases its
+    /// coefficient by about σ²‖h‖²/E[ŝ²] (attenuation), where σ²‖h‖² is the noise the local
+    /// polynomial leaves on the channel. What it adds is first order: rebuilding a point from
+    /// its neighbours bends the signal by about √ε(K)/√E[ŝ²] (ε(K), the leave-one-out error,
+    /// bounds that bias from above), and the regression averages noise away but not bias; a
+    /// 0.3 % bend of x is amplified many times where the linear and cubic forces nearly
+    /// cancel (a double well). So a channel is smoothed only where
+    /// σ²‖h‖² > √(ε(K)·E[ŝ²]).
+    fn adapt_smoothing(&mut self) {
+        let keep = T::from_f64(0.5);
+        let (sx, sv, n) = self.d4;
+        if n > T::ZERO {
+            let sigma2 = |sum: T| sum / (T::from_f64(70.0) * n);
+            let noise_x = sigma2(sx) * self.gains.0;
+            let noise_v = if self.config.channels.velocity {
+                sigma2(sv) * self.gains.1
+            } else {
+                sigma2(sx) * self.gains.1
+            };
+            let decide = |s: &KnnSmoother<T>, noise: T, power: T| {
+                s.mean_error(s.k())
+                    .is_some_and(|e| noise > (e * power / n).sqrt())
+            };
+            self.smoothing_on = (
+                decide(&self.smooth_x, noise_x, self.power.0),
+                decide(&self.smooth_v, noise_v, self.power.1),
+            );
+        }
+        self.smooth_x.choose_k(keep);
+        self.smooth_v.choose_k(keep);
+    }
+
+    /// Whether the k-neighbour smoothing is applied to (x̂, v̂) now.
+    pub fn smoothing_applied(&self) -> (bool, bool) {
+        if self.config.smoothing {
+            self.smoothing_on
+        } else {
+            (false, false)
+        }
+    }
+
     fn restart(&mut self) {
         self.x.clear();
         self.v.clear();
@@ -356,6 +413,23 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let taps = &self.taps;
         let (xa, xb) = self.x.as_slices();
         let x_hat = taps.apply(0, xa, xb);
+        // White noise of the raw channels from fourth differences of the newest samples.
+        let d4 = |buffer: &HistoryBuf<T, W>| {
+            let mut recent = buffer.oldest_ordered().rev().take(5);
+            let mut d = T::ZERO;
+            for c in [1.0, -4.0, 6.0, -4.0, 1.0] {
+                d += T::from_f64(c) * recent.next().copied().unwrap_or(T::ZERO);
+            }
+            d * d
+        };
+        if self.config.smoothing && self.x.len() >= 5 {
+            self.d4.0 += d4(&self.x);
+            if self.config.channels.velocity {
+                self.d4.1 += d4(&self.v);
+            }
+            self.d4.2 += T::ONE;
+            self.power.0 += x_hat * x_hat;
+        }
         let (v_hat, y_hat) = if self.config.channels.velocity {
             let (va, vb) = self.v.as_slices();
             let v_hat = taps.apply(0, va, vb);
@@ -373,6 +447,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         } else {
             T::ZERO
         };
+        if self.config.smoothing && self.x.len() >= 5 {
+            self.power.1 += v_hat * v_hat;
+        }
         let t_centre = t_newest - (self.config.window - 1) as f64 / 2.0 * self.config.sample_period;
         let row = if self.config.smoothing {
             let sx = self.smooth_x.push(x_hat);
@@ -388,6 +465,16 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             match (sx, sv) {
                 (Some(x), Some(v)) if self.delay_len == DELAY => {
                     let (y, u, t) = self.delay[self.delay_head];
+                    let x = if self.smoothing_on.0 {
+                        x
+                    } else {
+                        self.smooth_x.centre()
+                    };
+                    let v = if self.smoothing_on.1 {
+                        v
+                    } else {
+                        self.smooth_v.centre()
+                    };
                     Row { x, v, y, u, t }
                 }
                 _ => return,
@@ -592,8 +679,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                         // Only a removal counts: the shift may take out the terms it
                         // created, never trade one term for another.
                         Some(t)
-                            if t.len() < selected.len()
-                                && t.support & !selected.support == 0 =>
+                            if t.len() < selected.len() && t.support & !selected.support == 0 =>
                         {
                             c = c2;
                             result = trial;
@@ -646,8 +732,8 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         for &t in self.library.terms() {
             let _ = terms.push(t);
         }
-        let k = |s: &KnnSmoother<T>| {
-            if self.config.smoothing {
+        let k = |s: &KnnSmoother<T>, on: bool| {
+            if self.config.smoothing && on {
                 s.k() as u8
             } else {
                 0
@@ -658,7 +744,10 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             coefficients,
             solutions,
             selected: sweep.selected,
-            k: (k(&self.smooth_x), k(&self.smooth_v)),
+            k: (
+                k(&self.smooth_x, self.smoothing_on.0),
+                k(&self.smooth_v, self.smoothing_on.1),
+            ),
             omega: self.config.omega,
             offset_x,
             offset_v,

@@ -40,6 +40,7 @@ pub struct KnnSmoother<T> {
     head: usize,
     k: usize,
     errors: [T; MAX_NEIGHBOURS + 1],
+    evaluations: T,
     rows: u32,
 }
 
@@ -58,6 +59,7 @@ impl<T: Real> KnnSmoother<T> {
             head: 0,
             k: MAX_NEIGHBOURS,
             errors: [T::ZERO; MAX_NEIGHBOURS + 1],
+            evaluations: T::ZERO,
             rows: 0,
         }
     }
@@ -81,6 +83,21 @@ impl<T: Real> KnnSmoother<T> {
         &self.errors
     }
 
+    /// The mean ε(K) of the current accumulation (`None` before any row was evaluated, or
+    /// for a K out of range).
+    pub fn mean_error(&self, k: usize) -> Option<T> {
+        if !(MIN_NEIGHBOURS..=MAX_NEIGHBOURS).contains(&k) || !(self.evaluations > T::ZERO) {
+            return None;
+        }
+        Some(self.errors[k] / self.evaluations)
+    }
+
+    /// The value of the row [`Self::LAG`] rows back, unsmoothed (what the last
+    /// [`Self::push`] smoothed).
+    pub fn centre(&self) -> T {
+        self.at(SPAN + 1)
+    }
+
     /// Re-chooses K from ε(K) and starts a new accumulation weighted by `keep` (0 forgets the
     /// past errors, 1 keeps them all).
     pub fn choose_k(&mut self, keep: T) {
@@ -101,6 +118,7 @@ impl<T: Real> KnnSmoother<T> {
         for e in self.errors.iter_mut() {
             *e *= keep;
         }
+        self.evaluations *= keep;
     }
 
     fn at(&self, i: usize) -> T {
@@ -230,6 +248,7 @@ impl<T: Real> KnnSmoother<T> {
             }
         };
         if evaluate {
+            self.evaluations += T::ONE;
             let mut chosen = own;
             for k in MIN_NEIGHBOURS..=MAX_NEIGHBOURS {
                 let estimate = weights_for(k);

@@ -82,13 +82,12 @@
 //! oldest unacknowledged batch). Every sample is applied exactly once whatever the link
 //! does; `Configure` and `Reset` are idempotent, so resending them is safe too.
 //!
-//! **`Query` perturbs the identifier.** [`Identifier::screen`] re-chooses the smoothing's K
-//! for the rows that follow (the scheduled screenings do the same), so a `Query` in the
-//! middle of a stream makes the rest of the run differ from a run without it. A `Query` after
-//! the last batch gives bit for bit the model of `lssi identify --f32` (which pushes every
-//! sample, then screens once). A `Query` with no samples since the last screening (a resent
-//! query, or one right after a scheduled screening) does not screen again: the snapshot is
-//! the same as a fresh screening would give, and nothing is perturbed.
+//! **`Query` does not perturb the identifier.** [`Identifier::screen`] on request leaves the
+//! identifier's state as it was (only the scheduled screenings re-choose the smoothing's K),
+//! so a `Query` in mid-stream changes nothing that follows. A `Query` after the last batch
+//! gives bit for bit the model of `lssi identify --f32` (which pushes every sample, then
+//! screens once). A `Query` with no samples since the last screening (a resent query, or one
+//! right after a scheduled screening) does not screen again.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![cfg_attr(

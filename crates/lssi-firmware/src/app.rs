@@ -1,19 +1,53 @@
-//! The demo application: echoes every byte received back to the host, so the link can be
-//! tested end to end. `lssi-device`'s command loop takes its place (see `main.rs`).
+//! The device application: lssi-device's command loop on UART0.
+//!
+//! The [`Device`] (identifier, frame decoder, transmit buffer, counters: about 16 KiB) lives
+//! in a static. The loop polls UART0 (which holds one received byte; QEMU holds the rest back
+//! until it is read, so nothing is lost there) and lets the device handle every frame the
+//! bytes complete, timing each sample's push with the cost meter. `Device::poll` bumps the
+//! watchdog counter that `Health` reports: a host that sees it stop knows the loop hangs.
+//!
+//! On silicon, a screening (6 to 22 million instructions, see the README) keeps the loop
+//! away from the UART for 0.1–0.35 s at 64 MHz: a one-byte UART then overruns unless the host
+//! waits for the `Ack` of each batch (as `lssi replay` does) or RX is moved to an interrupt
+//! and a ring buffer. An overrun is logged.
 
-use lssi_firmware::transport::Transport;
+use lssi_device::Device;
+use lssi_firmware::cost::Meter;
+use lssi_firmware::once::TakeOnce;
+use lssi_firmware::platform;
+use lssi_firmware::uart::Uart0;
 
-/// Echoes forever.
-pub fn run(link: &mut impl Transport) -> ! {
-    let mut echoed: u32 = 0;
+/// The device application's storage, in `.bss`.
+static DEVICE: TakeOnce<Device> = TakeOnce::new();
+
+/// Runs the command loop forever.
+pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
+    let Some(device) = DEVICE.take_with(Device::new) else {
+        defmt::error!("the device application was already taken");
+        platform::exit(platform::EXIT_PANIC)
+    };
+    defmt::info!(
+        "lssi device ready: window capacity {=usize}, {=usize} terms, costs in {=str}",
+        lssi_device::DEFAULT_WINDOW,
+        lssi_device::DEFAULT_TERMS,
+        lssi_firmware::cost::Meter::unit(meter).as_str()
+    );
+    let mut screenings = 0;
     loop {
-        if let Some(b) = link.read() {
-            link.write(&[b]);
-            echoed = echoed.wrapping_add(1);
-            defmt::trace!("echo {=u8:#04x} ({=u32} so far)", b, echoed);
-            if b == b'\n' {
-                defmt::debug!("echoed {=u32} bytes", echoed);
-            }
+        let Ok(_) = device.poll(uart, meter);
+        if uart.take_overrun() {
+            defmt::warn!("UART0 RX overrun: a received byte was lost");
+        }
+        let s = device.stats();
+        if s.screen_cost_max > 0 && s.screen_cost != screenings {
+            screenings = s.screen_cost;
+            defmt::debug!(
+                "screening: {=u32} (worst {=u32}); per sample mean {=u32}, worst {=u32}",
+                s.screen_cost,
+                s.screen_cost_max,
+                s.cost_mean(),
+                s.cost_max
+            );
         }
     }
 }

@@ -223,3 +223,18 @@ fn systick_now() -> u64 {
         return (wraps << 24) | u64::from(SYSTICK_RELOAD - current);
     }
 }
+
+/// The device application's cost meter: the same figures as [`Meter::measure`], in
+/// instructions under QEMU and in cycles on silicon.
+impl lssi_device::CostMeter for Meter {
+    fn unit(&self) -> lssi_device::CostUnit {
+        match self.unit {
+            Unit::Instructions => lssi_device::CostUnit::Instructions,
+            Unit::Cycles => lssi_device::CostUnit::Cycles,
+        }
+    }
+
+    fn measure<R>(&mut self, f: impl FnOnce() -> R) -> (R, u32) {
+        Meter::measure(self, f)
+    }
+}

@@ -1,5 +1,6 @@
-//! Board support for the lssi Cortex-M4F image: CMSDK UART0 driver, byte transport,
-//! per-call cost meter, stack painting, defmt transport, panic and fault handling.
+//! Board support for the lssi Cortex-M4F image: CMSDK UART0 driver (lssi-device's
+//! transport), per-call cost meter (its cost meter), stack painting, a take-once static,
+//! defmt transport, panic and fault handling.
 //!
 //! Built for `thumbv7em-none-eabihf` only; the reference board is QEMU's `mps2-an386`.
 //! The image itself is `src/main.rs`.
@@ -10,8 +11,8 @@
 #![deny(missing_docs)]
 
 pub mod cost;
+pub mod once;
 pub mod platform;
 pub mod stack;
-pub mod transport;
 pub mod uart;
 pub mod workload;

@@ -1,23 +1,22 @@
 //! The lssi Cortex-M4F image (QEMU's `mps2-an386` board stands in for the board).
 //!
 //! Start-up: cortex-m-rt paints the stack, then `main` brings up the cost meter and UART0,
-//! logs `lssi firmware up` over defmt and hands the UART to the application: for now the
-//! echo demo in `app.rs`; with `--features bench`, the benchmarks in `bench.rs`, after which
-//! the run exits.
-//!
-//! Plugging in `lssi-device` later: add it as a dependency, implement its transport trait
-//! for `Uart0` (replacing `transport.rs`), and replace the `app::run(&mut uart)` line below
-//! with the device's command loop, e.g. `lssi_device::Device::new(config).run(&mut uart)`.
+//! logs `lssi firmware up` over defmt and hands both to the application, lssi-device's
+//! command loop (`app.rs`). With `--features bench` or `bench-identifier` the benchmarks run
+//! instead (`bench.rs`, `bench_identifier.rs`), after which the run exits.
 
 #![no_std]
 #![no_main]
-#![forbid(unsafe_code)]
+// `deny`, not `forbid`: `cortex_m::singleton!` (a sound, safe macro) opts in inside.
+#![deny(unsafe_code)]
 #![deny(missing_docs)]
 
-#[cfg(not(feature = "bench"))]
+#[cfg(not(any(feature = "bench", feature = "bench-identifier")))]
 mod app;
 #[cfg(feature = "bench")]
 mod bench;
+#[cfg(feature = "bench-identifier")]
+mod bench_identifier;
 
 use cortex_m_rt::entry;
 use lssi_firmware::{cost, platform, stack, uart};
@@ -52,19 +51,22 @@ fn main() -> ! {
         stack::size()
     );
 
-    #[cfg(feature = "bench")]
+    #[cfg(any(feature = "bench", feature = "bench-identifier"))]
     {
         // The benchmarks do not use the link; UART0 stays set up, as in a real image.
         let _uart = uart;
         let mut meter = meter;
+        #[cfg(feature = "bench")]
         bench::run(&mut meter);
+        #[cfg(feature = "bench-identifier")]
+        bench_identifier::run(&mut meter);
         defmt::info!("stack: peak {=usize} bytes since reset", stack::peak_used());
         platform::exit(platform::EXIT_SUCCESS)
     }
 
-    #[cfg(not(feature = "bench"))]
+    #[cfg(not(any(feature = "bench", feature = "bench-identifier")))]
     {
-        let mut uart = uart;
-        app::run(&mut uart)
+        let (mut uart, mut meter) = (uart, meter);
+        app::run(&mut uart, &mut meter)
     }
 }

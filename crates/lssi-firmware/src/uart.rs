@@ -144,14 +144,27 @@ impl Uart0 {
     }
 }
 
-impl crate::transport::Transport for Uart0 {
-    fn read(&mut self) -> Option<u8> {
-        self.try_read()
+/// The device application's link: `read` drains what UART0 holds without blocking (one
+/// byte on this UART, which has no FIFO), `write` sends a frame byte by byte.
+impl lssi_device::Transport for Uart0 {
+    type Error = core::convert::Infallible;
+
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        let mut n = 0;
+        for slot in buf.iter_mut() {
+            match self.try_read() {
+                Some(b) => *slot = b,
+                None => break,
+            }
+            n += 1;
+        }
+        Ok(n)
     }
 
-    fn write(&mut self, bytes: &[u8]) {
+    fn write(&mut self, bytes: &[u8]) -> Result<(), Self::Error> {
         for &b in bytes {
             Uart0::write(self, b);
         }
+        Ok(())
     }
 }

@@ -28,6 +28,9 @@ pub struct BenchArgs {
 /// The benchmarks.
 #[derive(Debug, Clone, Subcommand)]
 pub enum Which {
+    /// Replay throughput over firmware-sim's pty at 115 200 and 921 600 baud, against the
+    /// line's bound.
+    Replay(crate::commands::replay::ReplayBenchArgs),
     /// The eq. 17 accuracy table and the throughput on 10⁶ samples.
     Accuracy {
         /// Only ε = 1 and the paper's noise (a quick look).
@@ -83,7 +86,10 @@ fn options(f32: bool, smoothing: bool) -> Options {
 
 /// Runs `lssi bench`.
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
-    let Which::Accuracy { quick, seed } = args.which;
+    let (quick, seed) = match &args.which {
+        Which::Accuracy { quick, seed } => (*quick, *seed),
+        Which::Replay(replay) => return crate::commands::replay::bench(replay),
+    };
     let epsilons: &[f64] = if quick { &[1.0] } else { &[1.0, 0.3] };
     let kinds: &[NoiseKind] = if quick {
         &[NoiseKind::Paper]

@@ -1,7 +1,9 @@
 //! `lssi gen MODEL [OPTIONS] OUT.csv`: writes a synthetic recording and, beside it, its truth.
 //!
-//! `OUT.csv` gets the observed columns (`t,x` or `t,x,v`) and `OUT.json` the [`Truth`]: the
-//! equation's terms and coefficients, every option, and the noise that was added.
+//! `OUT.csv` gets the observed columns (`t,x`, `t,x,v`, and for `eveh --input` also `u`) and
+//! `OUT.json` the [`Truth`]: the equation's terms and coefficients, every option, and the
+//! noise that was added. Models: `paper` (eq. 17) and `eveh` (the harvester, eq. 19; see
+//! [`crate::generators::eveh`] for how Table 5 becomes its coefficients).
 //!
 //! [`Truth`]: crate::truth::Truth
 
@@ -12,6 +14,9 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand};
 
 use crate::error::CliError;
+use crate::generators::eveh::{
+    Drift, DriftParameter, EvehGenerated, EvehOptions, EvehParams, Excitation, Wells, generate_eveh,
+};
 use crate::generators::paper::{PaperOptions, PaperParams, generate_paper};
 use crate::generators::{Generated, Observe};
 use crate::noise::NoiseKind;
@@ -30,6 +35,180 @@ pub struct GenArgs {
 pub enum GenModel {
     /// The paper's eq. (17) with Table 1's parameters and eq. (16) noise.
     Paper(PaperArgs),
+    /// The paper's harvester, eq. (19), from Table 5's physical parameters, in SI units.
+    Eveh(Box<EvehArgs>),
+}
+
+/// Arguments of `lssi gen eveh` (defaults: the shipped bistable recording).
+#[derive(Debug, Clone, Args)]
+pub struct EvehArgs {
+    /// Single well (D > 0) or double well (D < 0).
+    #[arg(long, value_enum, default_value_t = EvehOptions::default().wells)]
+    pub wells: Wells,
+    /// Excitation: fixed frequency F cos(Ωt), or a linear sweep from --omega to --sweep-to.
+    #[arg(long, value_enum, default_value_t = EvehOptions::default().excitation)]
+    pub excitation: Excitation,
+    /// Excitation acceleration amplitude F, m/s².
+    #[arg(long, value_name = "M_PER_S2", default_value_t = EvehOptions::default().amplitude,
+          allow_negative_numbers = true)]
+    pub amplitude: f64,
+    /// Excitation angular frequency Ω (start of a sweep), rad/s.
+    #[arg(long, value_name = "RAD_PER_S", default_value_t = EvehOptions::default().omega,
+          allow_negative_numbers = true)]
+    pub omega: f64,
+    /// End of the sweep, rad/s (with --excitation sweep).
+    #[arg(long = "sweep-to", value_name = "RAD_PER_S",
+          default_value_t = EvehOptions::default().sweep_to, allow_negative_numbers = true)]
+    pub sweep_to: f64,
+    /// Write the excitation as a measured column u (m/s²).
+    #[arg(long)]
+    pub input: bool,
+    /// Response channels to write: x, or x and v.
+    #[arg(long, value_enum, default_value_t = EvehOptions::default().observe)]
+    pub observe: Observe,
+    /// Sensor noise: Gaussian, RMS = D times each channel's RMS (0.005 = 0.5 %).
+    #[arg(long, value_name = "D", default_value_t = EvehOptions::default().delta,
+          allow_negative_numbers = true)]
+    pub delta: f64,
+    /// ADC resolution in bits (0: no quantisation).
+    #[arg(long = "adc-bits", value_name = "BITS", default_value_t = EvehOptions::default().adc_bits)]
+    pub adc_bits: u8,
+    /// ADC full scale for x: the range is ±METRES.
+    #[arg(long = "full-scale", value_name = "METRES",
+          default_value_t = EvehOptions::default().full_scale, allow_negative_numbers = true)]
+    pub full_scale: f64,
+    /// Sample rate, Hz.
+    #[arg(long, value_name = "HZ", default_value_t = EvehOptions::default().rate,
+          allow_negative_numbers = true)]
+    pub rate: f64,
+    /// Last sample time, seconds.
+    #[arg(long = "t-end", value_name = "T", default_value_t = EvehOptions::default().t_end,
+          allow_negative_numbers = true)]
+    pub t_end: f64,
+    /// Initial displacement, metres (released from rest there at t = 0).
+    #[arg(long, value_name = "METRES",
+          default_value_t = EvehOptions::default().initial_displacement,
+          allow_negative_numbers = true)]
+    pub x0: f64,
+    /// Initial velocity, m/s.
+    #[arg(
+        long,
+        value_name = "M_PER_S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub v0: f64,
+    /// A parameter that changes during the record (with --drift-at and --drift-by).
+    #[arg(long, value_enum)]
+    pub drift: Option<DriftParameter>,
+    /// When the drift starts, seconds.
+    #[arg(long = "drift-at", value_name = "T", allow_negative_numbers = true)]
+    pub drift_at: Option<f64>,
+    /// Relative change of the drifting parameter (-0.2: 20 % less).
+    #[arg(
+        long = "drift-by",
+        value_name = "FRACTION",
+        allow_negative_numbers = true
+    )]
+    pub drift_by: Option<f64>,
+    /// Duration of the change, seconds (0: a step).
+    #[arg(
+        long = "drift-ramp",
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub drift_ramp: Option<f64>,
+    /// Magnet mass m, kg (Table 5: 10.6 g).
+    #[arg(long, value_name = "KG", default_value_t = EvehParams::default().mass,
+          allow_negative_numbers = true)]
+    pub mass: f64,
+    /// Magnitude of the net linear stiffness k₁, N/m [default: m (2π 2.92 Hz)², Table 5's
+    /// resonance].
+    #[arg(long, value_name = "N_PER_M", default_value_t = EvehParams::default().linear_stiffness,
+          allow_negative_numbers = true)]
+    pub k1: f64,
+    /// Cubic stiffness k₃, N/m³ (Table 5: 8.432e-3 N/mm³).
+    #[arg(long, value_name = "N_PER_M3", default_value_t = EvehParams::default().cubic_stiffness,
+          allow_negative_numbers = true)]
+    pub k3: f64,
+    /// Damping ratio ζ (Table 5: 0.011).
+    #[arg(long, value_name = "ZETA", default_value_t = EvehParams::default().damping_ratio,
+          allow_negative_numbers = true)]
+    pub zeta: f64,
+    /// Seed of the noise generator; the same seed gives the same file.
+    #[arg(long, value_name = "S", default_value_t = EvehOptions::default().seed)]
+    pub seed: u64,
+    /// The CSV file to write; the truth goes beside it with the extension .json.
+    #[arg(value_name = "OUT.csv")]
+    pub out: PathBuf,
+}
+
+impl EvehArgs {
+    /// The generator options these flags ask for.
+    pub fn options(&self) -> Result<EvehOptions, CliError> {
+        let drift = match self.drift {
+            Some(parameter) => {
+                let at = self.drift_at.ok_or_else(|| CliError::BadFlag {
+                    flag: "--drift-at",
+                    value: "nothing".into(),
+                    requirement: "given with --drift: the time the change starts, in seconds"
+                        .into(),
+                })?;
+                let by = self.drift_by.ok_or_else(|| CliError::BadFlag {
+                    flag: "--drift-by",
+                    value: "nothing".into(),
+                    requirement: "given with --drift: the relative change, e.g. -0.2".into(),
+                })?;
+                Some(Drift {
+                    parameter,
+                    at,
+                    by,
+                    ramp: self.drift_ramp.unwrap_or(0.0),
+                })
+            }
+            None => {
+                let stray = [
+                    ("--drift-at", self.drift_at),
+                    ("--drift-by", self.drift_by),
+                    ("--drift-ramp", self.drift_ramp),
+                ]
+                .into_iter()
+                .find_map(|(flag, value)| value.map(|v| (flag, v)));
+                if let Some((flag, value)) = stray {
+                    return Err(CliError::BadFlag {
+                        flag,
+                        value: value.to_string(),
+                        requirement: "used with --drift stiffness or --drift damping only".into(),
+                    });
+                }
+                None
+            }
+        };
+        Ok(EvehOptions {
+            params: EvehParams {
+                mass: self.mass,
+                linear_stiffness: self.k1,
+                cubic_stiffness: self.k3,
+                damping_ratio: self.zeta,
+            },
+            wells: self.wells,
+            excitation: self.excitation,
+            amplitude: self.amplitude,
+            omega: self.omega,
+            sweep_to: self.sweep_to,
+            input: self.input,
+            observe: self.observe,
+            delta: self.delta,
+            adc_bits: self.adc_bits,
+            full_scale: self.full_scale,
+            rate: self.rate,
+            t_end: self.t_end,
+            initial_displacement: self.x0,
+            initial_velocity: self.v0,
+            drift,
+            seed: self.seed,
+        })
+    }
 }
 
 /// Arguments of `lssi gen paper`.
@@ -86,7 +265,84 @@ impl PaperArgs {
 pub fn run(args: &GenArgs) -> Result<(), CliError> {
     match &args.model {
         GenModel::Paper(paper) => run_paper(paper),
+        GenModel::Eveh(eveh) => run_eveh(eveh),
     }
+}
+
+fn run_eveh(args: &EvehArgs) -> Result<(), CliError> {
+    let options = args.options()?;
+    options.validate().map_err(|error| {
+        let flag = match error.field {
+            "mass" => "--mass",
+            "linear_stiffness" => "--k1",
+            "cubic_stiffness" => "--k3",
+            "damping_ratio" => "--zeta",
+            "amplitude" => "--amplitude",
+            "omega" => "--omega",
+            "sweep_to" => "--sweep-to",
+            "delta" => "--delta",
+            "adc_bits" => "--adc-bits",
+            "full_scale" => "--full-scale",
+            "rate" => "--rate",
+            "t_end" => "--t-end",
+            // The grid check names dt, which is 1/rate here.
+            "dt" => "--rate",
+            "initial_displacement" => "--x0",
+            "initial_velocity" => "--v0",
+            "drift_at" => "--drift-at",
+            "drift_by" => "--drift-by",
+            "drift_ramp" => "--drift-ramp",
+            other => other,
+        };
+        let mut error = CliError::from_option(error, flag);
+        if let CliError::BadFlag {
+            flag: "--rate",
+            requirement,
+            ..
+        } = &mut error
+        {
+            *requirement = "a positive sample rate in Hz giving at least two and at most 10 \
+                            million samples over --t-end"
+                .into();
+        }
+        error
+    })?;
+    let json = truth_path(&args.out)?;
+    let generated = generate_eveh(&options);
+    if let Some(t) = generated.generated.diverged_at() {
+        return Err(CliError::Diverged {
+            model: generated.generated.truth.model.clone(),
+            t,
+        });
+    }
+    write_eveh(&args.out, &json, &generated)?;
+    println!(
+        "wrote {} ({} samples of {} over {} s at {} Hz) and {}",
+        args.out.display(),
+        generated.generated.t.len(),
+        generated.csv_columns().0.join(","),
+        options.t_end,
+        options.rate,
+        json.display()
+    );
+    if generated.clipped > 0 {
+        eprintln!(
+            "lssi: warning: {} samples of x exceeded the ADC full scale of ±{} m and were clipped; \
+             raise --full-scale.",
+            generated.clipped, options.full_scale
+        );
+    }
+    Ok(())
+}
+
+/// Writes a generated harvester recording (with its `u` column, if any) and its truth.
+pub fn write_eveh(csv: &Path, json: &Path, generated: &EvehGenerated) -> Result<(), CliError> {
+    let (header, columns) = generated.csv_columns();
+    write_csv(csv, &header, &columns).map_err(|source| CliError::Write {
+        path: csv.to_owned(),
+        source,
+    })?;
+    write_truth(json, &generated.generated)
 }
 
 fn run_paper(args: &PaperArgs) -> Result<(), CliError> {
@@ -152,6 +408,11 @@ pub fn write_generated(csv: &Path, json: &Path, generated: &Generated) -> Result
         path: csv.to_owned(),
         source,
     })?;
+    write_truth(json, generated)
+}
+
+/// Writes the truth of a generated recording, pretty-printed, to `json`.
+fn write_truth(json: &Path, generated: &Generated) -> Result<(), CliError> {
     let write_json = || -> std::io::Result<()> {
         let mut writer = BufWriter::new(File::create(json)?);
         serde_json::to_writer_pretty(&mut writer, &generated.truth)?;
@@ -192,5 +453,25 @@ mod tests {
         }
         let wrapper = Wrapper::parse_from(["test", "out.csv"]);
         assert_eq!(wrapper.args.options(), PaperOptions::default());
+    }
+
+    #[test]
+    fn eveh_flag_defaults_are_the_library_defaults() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrapper {
+            #[command(flatten)]
+            args: EvehArgs,
+        }
+        let wrapper = Wrapper::parse_from(["test", "out.csv"]);
+        assert_eq!(wrapper.args.options().ok(), Some(EvehOptions::default()));
+        let stray = Wrapper::parse_from(["test", "--drift-by", "0.1", "out.csv"]);
+        assert!(matches!(
+            stray.args.options(),
+            Err(CliError::BadFlag {
+                flag: "--drift-by",
+                ..
+            })
+        ));
     }
 }

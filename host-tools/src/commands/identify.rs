@@ -1,4 +1,10 @@
 //! `lssi identify FILE.csv`: the equation of motion of a recording.
+//!
+//! With `--track` it prints instead the model selected at every screening (every `--every`
+//! seconds) as CSV on stdout, or JSON lines with `--json`, and the settle time after a change
+//! (see [`crate::track`]): on stderr after the CSV, or as a last JSON line
+//! `{"settle": {...}}`. The change time is `--change-at`, or the drift time of `--truth`;
+//! the reference is the truth's coefficients after the change, or else the last snapshot.
 
 use std::path::PathBuf;
 
@@ -7,6 +13,8 @@ use clap::{Args, ValueEnum};
 use crate::error::CliError;
 use crate::identify::{self, Options};
 use crate::recording::{ColumnNames, Recording};
+use crate::track::{self, TrackOptions};
+use crate::truth::Truth;
 
 /// Monomial families (clap's view of [`lssi_core::PolyFamily`]).
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -49,9 +57,30 @@ pub struct IdentifyArgs {
     /// Forgetting time constant in seconds (default: remember everything).
     #[arg(long, value_name = "SECONDS")]
     pub memory: Option<f64>,
-    /// Print one JSON object instead of text.
+    /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
     #[arg(long)]
     pub json: bool,
+    /// Print the coefficients over time (one row per screening) and the settle time after a
+    /// change, instead of the final model.
+    #[arg(long)]
+    pub track: bool,
+    /// With --track: seconds between two screenings.
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.25)]
+    pub every: f64,
+    /// With --track: the truth file (from `lssi gen`) whose coefficients after its drift are
+    /// the reference of the settle time, and whose drift time is the change time.
+    #[arg(long, value_name = "FILE.json")]
+    pub truth: Option<PathBuf>,
+    /// With --track: the time of the change, seconds [default: the truth's drift time].
+    #[arg(
+        long = "change-at",
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
+    pub change_at: Option<f64>,
+    /// With --track: the relative tolerance of the settle time.
+    #[arg(long = "settle-tol", value_name = "FRACTION", default_value_t = 0.05)]
+    pub settle_tol: f64,
     /// Which header names hold which quantity.
     #[command(flatten)]
     pub columns: ColumnNames,
@@ -108,10 +137,66 @@ impl IdentifyArgs {
     }
 }
 
+impl IdentifyArgs {
+    /// Checks the `--track` flags: positive `--every` and `--settle-tol`, and none of them
+    /// without `--track`.
+    fn check_track_flags(&self) -> Result<(), CliError> {
+        let defaults = (0.25, 0.05);
+        if !self.track {
+            let stray = if self.every != defaults.0 {
+                Some(("--every", self.every.to_string()))
+            } else if self.settle_tol != defaults.1 {
+                Some(("--settle-tol", self.settle_tol.to_string()))
+            } else if let Some(c) = self.change_at {
+                Some(("--change-at", c.to_string()))
+            } else {
+                self.truth
+                    .as_ref()
+                    .map(|p| ("--truth", p.display().to_string()))
+            };
+            if let Some((flag, value)) = stray {
+                return Err(CliError::BadFlag {
+                    flag,
+                    value,
+                    requirement: "used with --track only".into(),
+                });
+            }
+        }
+        if !(self.every.is_finite() && self.every > 0.0) {
+            return Err(CliError::BadFlag {
+                flag: "--every",
+                value: self.every.to_string(),
+                requirement: "a positive time in seconds".into(),
+            });
+        }
+        if !(self.settle_tol.is_finite() && self.settle_tol > 0.0) {
+            return Err(CliError::BadFlag {
+                flag: "--settle-tol",
+                value: self.settle_tol.to_string(),
+                requirement: "a positive fraction, such as 0.05 for 5 %".into(),
+            });
+        }
+        if let Some(c) = self.change_at
+            && !c.is_finite()
+        {
+            return Err(CliError::BadFlag {
+                flag: "--change-at",
+                value: c.to_string(),
+                requirement: "a time in seconds".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
 /// Runs `lssi identify`.
 pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
+    args.check_track_flags()?;
     let recording = Recording::read(&args.file, &args.columns)?;
+    if args.track {
+        return run_track(args, &recording, &options);
+    }
     let report = identify_recording(&recording, &options)?;
     if args.json {
         println!("{}", serde_json::to_string(&report).unwrap_or_default());
@@ -132,5 +217,97 @@ pub fn identify_recording(
         identify::run::<f32>(recording, config, estimated).map_err(bad)
     } else {
         identify::run::<f64>(recording, config, estimated).map_err(bad)
+    }
+}
+
+/// `lssi identify --track`: the snapshots, then the settle time.
+fn run_track(
+    args: &IdentifyArgs,
+    recording: &Recording,
+    options: &Options,
+) -> Result<(), CliError> {
+    let bad = |e: identify::IdentifyError| CliError::Identify(e.0);
+    let truth: Option<Truth> = match &args.truth {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| CliError::BadFlag {
+                flag: "--truth",
+                value: path.display().to_string(),
+                requirement: format!("a readable truth file ({e})"),
+            })?;
+            Some(serde_json::from_str(&text).map_err(|e| CliError::BadFlag {
+                flag: "--truth",
+                value: path.display().to_string(),
+                requirement: format!("a truth file written by `lssi gen` ({e})"),
+            })?)
+        }
+        None => None,
+    };
+    let (config, _) = identify::configure(recording, options).map_err(bad)?;
+    let track_options = TrackOptions { every: args.every };
+    let track = if options.f32 {
+        track::track::<f32>(recording, config, &track_options)
+    } else {
+        track::track::<f64>(recording, config, &track_options)
+    }
+    .map_err(bad)?;
+    let (reference, truth_change) = match &truth {
+        Some(truth) => {
+            let (r, c) =
+                track::reference_from_truth(truth, &track).map_err(|reason| CliError::BadFlag {
+                    flag: "--truth",
+                    value: args
+                        .truth
+                        .as_ref()
+                        .map(|p| p.display().to_string())
+                        .unwrap_or_default(),
+                    requirement: format!("a truth for this library, but {reason}"),
+                })?;
+            (r, c)
+        }
+        None => (
+            track
+                .snapshots
+                .last()
+                .map(|s| s.coefficients.clone())
+                .unwrap_or_default(),
+            None,
+        ),
+    };
+    let reference_name = if truth.is_some() {
+        "the true coefficients after the change"
+    } else {
+        "the final estimate"
+    };
+    let settle = args
+        .change_at
+        .or(truth_change)
+        .map(|at| track::settle(&track, &reference, at, args.settle_tol));
+    if args.json {
+        print!("{}", track::to_json_lines(&track));
+        if let Some(s) = &settle {
+            let line = serde_json::json!({ "settle": s, "reference": reference_name });
+            println!("{line}");
+        }
+    } else {
+        print!("{}", track::to_csv(&track));
+        if let Some(s) = &settle {
+            eprintln!("{}", settle_sentence(s, reference_name));
+        }
+    }
+    Ok(())
+}
+
+/// The settle time as a sentence.
+fn settle_sentence(s: &track::Settle, reference: &str) -> String {
+    let tol = 100.0 * s.tolerance;
+    match (s.settled_at, s.settle_time) {
+        (Some(at), Some(time)) => format!(
+            "settled {time:.3} s after the change at {} s (from t = {at} s every coefficient stays within {tol} % of {reference}).",
+            s.change_at
+        ),
+        _ => format!(
+            "not settled: after the change at {} s the coefficients never stay within {tol} % of {reference} to the end of the record.",
+            s.change_at
+        ),
     }
 }

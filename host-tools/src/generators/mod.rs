@@ -1,4 +1,5 @@
-//! Synthetic recordings with a known equation, for testing and benchmarking the identifier.
+//! Synthetic recordings with a known equation, for testing and benchmarking the identifier:
+//! [`paper`] is the paper's eq. (17), [`eveh`] its harvester, eq. (19).
 //!
 //! Each generator is a pure function from options to [`Generated`] (no file I/O), so a benchmark
 //! can generate in memory and the `lssi gen` command only writes what it gets. The trajectories
@@ -15,6 +16,7 @@
 //! assert_eq!(generated.truth.coefficient("x^3"), Some(-4.0));
 //! ```
 
+pub mod eveh;
 pub mod paper;
 
 use std::fmt;

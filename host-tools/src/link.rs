@@ -1,0 +1,974 @@
+//! The host end of the serial link: handshake, configuration, sliding-window sample delivery
+//! with retransmission, and the final query.
+//!
+//! The device's side of the contract is `lssi-device`'s (its crate docs have the table): one
+//! reply per command, batches numbered from 0 after `Configure`, applied exactly once in `seq`
+//! order, a duplicate acked again without being applied, a gap answered with
+//! `Nak { seq: next expected, OutOfOrder }`, a corrupt frame answered with nothing.
+//!
+//! The host keeps up to [`LinkOptions::window`] batches unacknowledged (go-back-N):
+//!
+//! - an `Ack { seq }` acknowledges every batch up to `seq` (the device applies in order);
+//! - a `Nak { seq: s, OutOfOrder | Decode }` says everything before `s` was applied and `s`
+//!   was not: the host resends every unacknowledged batch from `s`. The batches already on
+//!   the wire behind the lost one will each be naked with the same `s` before the resent
+//!   ones arrive (the link is FIFO); that many naks of `s` are expected and ignored, so one
+//!   loss costs one resend of the window, not one per batch in flight;
+//! - no reply for [`LinkOptions::timeout`] resends every unacknowledged batch (the line
+//!   dropped the last frames or their acks); the timeout doubles while nothing comes back
+//!   and the link gives up after [`LinkOptions::silence`] without a single frame.
+//!
+//! Every frame the device sends is appended to the telemetry log as it arrives, before it is
+//! acted on. A reader thread splits the incoming bytes into frames; the calling thread writes
+//! and decides.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::io::{self, Read, Write};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use lssi_proto::{
+    CONTROL_SEQ, Channels, DeviceMsg, HostMsg, MAX_DEVICE_FRAME_LEN, MAX_FRAME_LEN, ModelSnapshot,
+    NakReason, PROTOCOL_VERSION, SampleBatch, SnapshotCause, WireConfig, WireSample, decode_frame,
+    encode,
+};
+
+use crate::telemetry::{RecordKind, TelemetryLog, now_us};
+
+/// How the link paces itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinkOptions {
+    /// The line's baud rate (8N1: 10 bit times a byte), used to size the timeouts.
+    pub baud: u32,
+    /// Most batches unacknowledged at once.
+    pub window: usize,
+    /// Most samples per batch (the device's `max_batch` lowers it further).
+    pub batch: usize,
+    /// The shortest wait for a reply before resending (it grows with the window's line time).
+    pub timeout: Duration,
+    /// How long the device may send nothing at all before the link gives up.
+    pub silence: Duration,
+}
+
+impl LinkOptions {
+    /// Defaults for a line at `baud`: a window of 8 full batches.
+    pub fn for_baud(baud: u32) -> Self {
+        Self {
+            baud,
+            window: 8,
+            batch: lssi_proto::MAX_BATCH,
+            timeout: Duration::from_millis(200),
+            silence: Duration::from_secs(10),
+        }
+    }
+
+    /// Time the line takes to carry `bytes`.
+    pub fn line_time(&self, bytes: usize) -> Duration {
+        Duration::from_secs_f64(bytes as f64 * 10.0 / f64::from(self.baud.max(1)))
+    }
+}
+
+/// The link's counters (the `"link"` object of `lssi replay --json`, with extras).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LinkStats {
+    /// Frames written to the device, retransmissions and commands included.
+    pub frames_sent: u64,
+    /// Sample-batch frames written again (after a nak or a timeout).
+    pub retransmits: u64,
+    /// Frames dropped for a bad CRC or COBS: by the device (its health counter) plus those the
+    /// host received.
+    pub crc_errors: u64,
+    /// Samples sent but not applied by the device (its count against the recording's); 0 on a
+    /// sound link.
+    pub samples_lost: u64,
+    /// Frames received from the device that failed their check.
+    pub rx_crc_errors: u64,
+    /// Waits that ended without a reply and caused a resend.
+    pub timeouts: u64,
+    /// Batches the device received again after applying them (its health counter).
+    pub duplicates: u64,
+    /// Bytes written to the device.
+    pub bytes_sent: u64,
+    /// Bytes of the sample-batch frames, first transmissions only: the wire cost of the
+    /// samples themselves.
+    pub sample_bytes: u64,
+    /// Samples in the recording.
+    pub samples: u64,
+    /// Samples sent so far (first transmissions).
+    pub samples_sent: u64,
+    /// Samples the device acknowledged.
+    pub samples_acked: u64,
+    /// Seconds from the first batch to the last acknowledgement.
+    pub stream_seconds: f64,
+}
+
+impl LinkStats {
+    /// Wire bytes per sample (the sample frames' bytes over the samples).
+    pub fn bytes_per_sample(&self) -> f64 {
+        if self.samples_sent > 0 {
+            self.sample_bytes as f64 / self.samples_sent as f64
+        } else {
+            0.0
+        }
+    }
+
+    /// The most samples per second a line at `baud` (8N1) can carry at these bytes per sample.
+    pub fn bound(&self, baud: u32) -> f64 {
+        let per_sample = self.bytes_per_sample();
+        if per_sample > 0.0 {
+            f64::from(baud) / 10.0 / per_sample
+        } else {
+            0.0
+        }
+    }
+
+    /// Samples per second delivered while streaming.
+    pub fn samples_per_second(&self) -> f64 {
+        if self.stream_seconds > 0.0 {
+            self.samples_acked as f64 / self.stream_seconds
+        } else {
+            0.0
+        }
+    }
+}
+
+/// What the device said it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceInfo {
+    /// Library capacity.
+    pub max_terms: u8,
+    /// Largest derivative window.
+    pub window_capacity: u16,
+    /// Most samples per batch.
+    pub max_batch: u16,
+}
+
+/// The device's health counters, as its last `Health` frame reported them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Health {
+    /// Samples the identifier accepted.
+    pub samples: u64,
+    /// Samples it rejected.
+    pub rejected: u64,
+    /// Frames the device dropped for CRC, COBS or overrun.
+    pub crc_errors: u32,
+    /// Batches it received again after applying them.
+    pub duplicates: u32,
+    /// Frames it received that decoded.
+    pub frames_ok: u32,
+}
+
+/// Why the link failed; each displays as one sentence naming the port.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum LinkError {
+    /// The port closed or failed under us (the device or its simulator went away).
+    Closed {
+        /// The port.
+        port: String,
+        /// What the operating system said, if anything.
+        detail: String,
+        /// Samples the device had acknowledged by then.
+        acked: u64,
+    },
+    /// The device sent nothing for too long.
+    Silent {
+        /// The port.
+        port: String,
+        /// What the host was waiting for.
+        waiting_for: &'static str,
+        /// How long it waited.
+        waited: Duration,
+    },
+    /// The device refused a command.
+    Refused {
+        /// The port.
+        port: String,
+        /// The command.
+        command: &'static str,
+        /// The device's reason.
+        reason: NakReason,
+    },
+    /// The device speaks another protocol version.
+    Version {
+        /// The port.
+        port: String,
+        /// The device's version.
+        theirs: u16,
+    },
+    /// The device applied more samples than were sent: it broke the exactly-once contract.
+    Overcount {
+        /// The port.
+        port: String,
+        /// Samples sent.
+        sent: u64,
+        /// Samples the device counted.
+        counted: u64,
+    },
+    /// The telemetry log could not be written.
+    Log {
+        /// The log file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: io::Error,
+    },
+}
+
+impl fmt::Display for LinkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkError::Closed {
+                port,
+                detail,
+                acked,
+            } => write!(
+                f,
+                "{port}: the link closed{} after the device had acknowledged {acked} samples; \
+                 the device (or its simulator) went away",
+                if detail.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({detail})")
+                }
+            ),
+            LinkError::Silent {
+                port,
+                waiting_for,
+                waited,
+            } => write!(
+                f,
+                "{port}: the device sent nothing for {:.1} s while the host waited for {waiting_for}; \
+                 is it running the lssi firmware at this baud rate?",
+                waited.as_secs_f64()
+            ),
+            LinkError::Refused {
+                port,
+                command,
+                reason,
+            } => write!(
+                f,
+                "{port}: the device refused {command} ({})",
+                nak_text(*reason)
+            ),
+            LinkError::Version { port, theirs } => write!(
+                f,
+                "{port}: the device speaks lssi protocol version {theirs}, but this build speaks \
+                 version {PROTOCOL_VERSION}; flash a matching firmware"
+            ),
+            LinkError::Overcount {
+                port,
+                sent,
+                counted,
+            } => write!(
+                f,
+                "{port}: the device counted {counted} samples but {sent} were sent, so it applied \
+                 some twice"
+            ),
+            LinkError::Log { path, source } => write!(
+                f,
+                "{}: cannot append to the telemetry log: {source}",
+                path.display()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for LinkError {}
+
+/// A nak reason as words.
+pub fn nak_text(reason: NakReason) -> &'static str {
+    match reason {
+        NakReason::Crc => "a frame failed its CRC",
+        NakReason::Decode => "a frame did not decode",
+        NakReason::Overflow => "a frame overran the receive buffer",
+        NakReason::OutOfOrder => "a batch arrived out of order",
+        NakReason::NotConfigured => "it has no configuration",
+        NakReason::BadConfig => {
+            "it cannot run this configuration: it does not fit its capacities or is out of range"
+        }
+        NakReason::Busy => "it is busy",
+        NakReason::VersionMismatch => "it speaks another protocol version",
+    }
+}
+
+/// What the link tells the person watching, as it happens.
+pub trait Observer {
+    /// Samples were acknowledged (or resent): the counters so far.
+    fn progress(&mut self, _stats: &LinkStats) {}
+    /// The device sent defmt log bytes.
+    fn device_log(&mut self, _bytes: &[u8]) {}
+    /// The device sent a model snapshot.
+    fn model(&mut self, _snapshot: &ModelSnapshot) {}
+}
+
+/// An observer that shows nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Quiet;
+
+impl Observer for Quiet {}
+
+/// What the reader thread hands over.
+#[derive(Debug)]
+enum Incoming {
+    /// One frame's bytes (COBS, no delimiter) and when it ended.
+    Frame(Vec<u8>, u64),
+    /// A frame longer than any device frame (its start), dropped.
+    Overlong(Vec<u8>, u64),
+    /// The port closed (end of file or an error).
+    Closed(String),
+    /// Raw defmt bytes from outside the link (QEMU's semihosting output).
+    Defmt(Vec<u8>, u64),
+}
+
+/// Reads the port on its own thread and splits the bytes into frames.
+#[derive(Debug)]
+struct Reader {
+    rx: Receiver<Incoming>,
+    tx: mpsc::Sender<Incoming>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Reader {
+    fn spawn(mut port: Box<dyn Read + Send>) -> Self {
+        let (tx, rx) = mpsc::channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = Arc::clone(&stop);
+        let sender = tx.clone();
+        let thread = std::thread::spawn(move || {
+            let tx = sender;
+            let mut buffer = [0u8; 4096];
+            let mut frame = Vec::with_capacity(MAX_DEVICE_FRAME_LEN);
+            let mut overlong = false;
+            while !stopped.load(Ordering::Relaxed) {
+                let n = match port.read(&mut buffer) {
+                    Ok(0) => {
+                        let _ = tx.send(Incoming::Closed("end of file".into()));
+                        return;
+                    }
+                    Ok(n) => n,
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            io::ErrorKind::TimedOut
+                                | io::ErrorKind::WouldBlock
+                                | io::ErrorKind::Interrupted
+                        ) =>
+                    {
+                        continue;
+                    }
+                    Err(e) => {
+                        let _ = tx.send(Incoming::Closed(e.to_string()));
+                        return;
+                    }
+                };
+                for &byte in &buffer[..n] {
+                    if byte == 0 {
+                        let bytes = std::mem::take(&mut frame);
+                        let message = if std::mem::take(&mut overlong) {
+                            Incoming::Overlong(bytes, now_us())
+                        } else if bytes.is_empty() {
+                            continue;
+                        } else {
+                            Incoming::Frame(bytes, now_us())
+                        };
+                        if tx.send(message).is_err() {
+                            return;
+                        }
+                    } else if frame.len() < MAX_DEVICE_FRAME_LEN {
+                        frame.push(byte);
+                    } else {
+                        overlong = true;
+                    }
+                }
+            }
+        });
+        Self {
+            rx,
+            tx,
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for Reader {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        // The thread wakes at the port's read timeout; a port without one (a test's pipe)
+        // ends with its writer, so do not wait for it here.
+        if let Some(thread) = self.thread.take()
+            && thread.is_finished()
+        {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// One batch on the wire, kept until acknowledged.
+#[derive(Debug)]
+struct InFlight {
+    seq: u32,
+    frame: Vec<u8>,
+    samples: usize,
+}
+
+/// What a received frame means for the caller.
+#[allow(
+    clippy::large_enum_variant,
+    reason = "one short-lived value per received frame; boxing buys nothing"
+)]
+enum Event {
+    Message(DeviceMsg),
+    Nothing,
+}
+
+/// An open link to a device.
+pub struct Link<'a> {
+    port: String,
+    writer: Box<dyn Write + Send>,
+    reader: Reader,
+    log: &'a mut TelemetryLog,
+    observer: &'a mut dyn Observer,
+    options: LinkOptions,
+    stats: LinkStats,
+    last_heard: Instant,
+    health: Option<Health>,
+    started: Option<Instant>,
+}
+
+impl fmt::Debug for Link<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Link")
+            .field("port", &self.port)
+            .field("options", &self.options)
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> Link<'a> {
+    /// A link over a byte stream: `reader` and `writer` are two handles on the same port
+    /// (`serialport`'s `try_clone`, or the two ends of a test's pipe). `port` names it in
+    /// errors. The reader should time out now and then (a serial port's timeout) so that its
+    /// thread notices the link is done.
+    pub fn new(
+        port: impl Into<String>,
+        reader: Box<dyn Read + Send>,
+        writer: Box<dyn Write + Send>,
+        log: &'a mut TelemetryLog,
+        observer: &'a mut dyn Observer,
+        options: LinkOptions,
+    ) -> Self {
+        Self {
+            port: port.into(),
+            writer,
+            reader: Reader::spawn(reader),
+            log,
+            observer,
+            options,
+            stats: LinkStats::default(),
+            last_heard: Instant::now(),
+            health: None,
+            started: None,
+        }
+    }
+
+    /// Also reads raw defmt bytes from `stream` (QEMU's semihosting output) until it ends:
+    /// logged as they arrive and shown through [`Observer::device_log`].
+    pub fn attach_defmt(&mut self, mut stream: Box<dyn Read + Send>) {
+        let tx = self.reader.tx.clone();
+        std::thread::spawn(move || {
+            let mut buffer = [0u8; 1024];
+            while let Ok(n) = stream.read(&mut buffer) {
+                if n == 0
+                    || tx
+                        .send(Incoming::Defmt(buffer[..n].to_vec(), now_us()))
+                        .is_err()
+                {
+                    return;
+                }
+            }
+        });
+    }
+
+    /// Appends a note to the telemetry log.
+    pub fn note(&mut self, text: &str) -> Result<(), LinkError> {
+        self.log_record(RecordKind::Note, now_us(), text.as_bytes())
+    }
+
+    /// The counters so far.
+    pub fn stats(&self) -> &LinkStats {
+        &self.stats
+    }
+
+    /// The port's name.
+    pub fn port(&self) -> &str {
+        &self.port
+    }
+
+    /// The device's last health report.
+    pub fn health(&self) -> Option<Health> {
+        self.health
+    }
+
+    fn closed(&self, detail: impl Into<String>) -> LinkError {
+        LinkError::Closed {
+            port: self.port.clone(),
+            detail: detail.into(),
+            acked: self.stats.samples_acked,
+        }
+    }
+
+    fn write_bytes(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        let mut rest = bytes;
+        let started = Instant::now();
+        while !rest.is_empty() {
+            match self.writer.write(rest) {
+                Ok(0) => return Err(self.closed("the port accepts no more bytes")),
+                Ok(n) => rest = &rest[n..],
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // A full line: the device reads at the baud rate. Wait, within reason.
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock
+                    ) && started.elapsed() < self.options.silence => {}
+                Err(e) => return Err(self.closed(e.to_string())),
+            }
+        }
+        self.stats.bytes_sent += bytes.len() as u64;
+        Ok(())
+    }
+
+    fn send(&mut self, message: &HostMsg) -> Result<(), LinkError> {
+        let mut frame = [0u8; MAX_FRAME_LEN];
+        let len = encode(message, &mut frame).unwrap_or(0);
+        self.write_bytes(&frame[..len])?;
+        self.stats.frames_sent += 1;
+        Ok(())
+    }
+
+    fn log_record(&mut self, kind: RecordKind, time_us: u64, data: &[u8]) -> Result<(), LinkError> {
+        self.log
+            .append_at(kind, time_us, data)
+            .map_err(|source| LinkError::Log {
+                path: self.log.path().to_path_buf(),
+                source,
+            })
+    }
+
+    /// Waits up to `wait` for the next frame; logs it and returns what it means.
+    fn receive(&mut self, wait: Duration) -> Result<Option<Event>, LinkError> {
+        let incoming = match self.reader.rx.recv_timeout(wait) {
+            Ok(incoming) => incoming,
+            Err(RecvTimeoutError::Timeout) => return Ok(None),
+            Err(RecvTimeoutError::Disconnected) => return Err(self.closed("")),
+        };
+        self.last_heard = Instant::now();
+        match incoming {
+            Incoming::Closed(detail) => Err(self.closed(detail)),
+            Incoming::Defmt(bytes, time) => {
+                self.log_record(RecordKind::Defmt, time, &bytes)?;
+                self.observer.device_log(&bytes);
+                Ok(Some(Event::Nothing))
+            }
+            Incoming::Overlong(bytes, time) => {
+                self.log_record(RecordKind::Frame, time, &bytes)?;
+                self.stats.rx_crc_errors += 1;
+                Ok(Some(Event::Nothing))
+            }
+            Incoming::Frame(bytes, time) => {
+                self.log_record(RecordKind::Frame, time, &bytes)?;
+                let mut copy = bytes;
+                match decode_frame::<DeviceMsg>(&mut copy) {
+                    Ok(message) => {
+                        match &message {
+                            DeviceMsg::Log { bytes } => self.observer.device_log(bytes),
+                            DeviceMsg::Model(snapshot) => self.observer.model(snapshot),
+                            DeviceMsg::Health {
+                                samples,
+                                rejected,
+                                crc_errors,
+                                duplicates,
+                                frames_ok,
+                                ..
+                            } => {
+                                self.health = Some(Health {
+                                    samples: *samples,
+                                    rejected: *rejected,
+                                    crc_errors: *crc_errors,
+                                    duplicates: *duplicates,
+                                    frames_ok: *frames_ok,
+                                });
+                            }
+                            _ => {}
+                        }
+                        Ok(Some(Event::Message(message)))
+                    }
+                    Err(lssi_proto::Error::VersionMismatch { theirs, .. }) => {
+                        Err(LinkError::Version {
+                            port: self.port.clone(),
+                            theirs,
+                        })
+                    }
+                    Err(_) => {
+                        self.stats.rx_crc_errors += 1;
+                        Ok(Some(Event::Nothing))
+                    }
+                }
+            }
+        }
+    }
+
+    /// Sends `message` until `answer` accepts a reply (resending after each timeout).
+    fn command<R>(
+        &mut self,
+        message: &HostMsg,
+        waiting_for: &'static str,
+        mut answer: impl FnMut(&DeviceMsg) -> Option<Result<R, LinkError>>,
+    ) -> Result<R, LinkError> {
+        let mut timeout = self.options.timeout;
+        let asked = Instant::now();
+        self.last_heard = asked;
+        loop {
+            self.send(message)?;
+            let sent = Instant::now();
+            while let Some(left) = timeout.checked_sub(sent.elapsed()) {
+                match self.receive(left)? {
+                    Some(Event::Message(reply)) => {
+                        if let Some(result) = answer(&reply) {
+                            return result;
+                        }
+                    }
+                    Some(Event::Nothing) | None => {}
+                }
+            }
+            if self.last_heard.elapsed() >= self.options.silence
+                || asked.elapsed() >= self.options.silence
+            {
+                return Err(LinkError::Silent {
+                    port: self.port.clone(),
+                    waiting_for,
+                    waited: asked.elapsed(),
+                });
+            }
+            self.stats.timeouts += 1;
+            timeout = (timeout * 2).min(self.options.silence / 4);
+        }
+    }
+
+    /// Opens the session: `Hello` until the device answers; returns its capacities.
+    pub fn hello(&mut self) -> Result<DeviceInfo, LinkError> {
+        // A lone 0x00 ends whatever half frame the device may hold from before.
+        self.write_bytes(&[0])?;
+        let port = self.port.clone();
+        self.command(
+            &HostMsg::Hello {
+                protocol_version: PROTOCOL_VERSION,
+            },
+            "the answer to Hello",
+            |reply| match *reply {
+                DeviceMsg::HelloReply {
+                    protocol_version,
+                    max_terms,
+                    window_capacity,
+                    max_batch,
+                } => Some(if protocol_version == PROTOCOL_VERSION {
+                    Ok(DeviceInfo {
+                        max_terms,
+                        window_capacity,
+                        max_batch,
+                    })
+                } else {
+                    Err(LinkError::Version {
+                        port: port.clone(),
+                        theirs: protocol_version,
+                    })
+                }),
+                DeviceMsg::Nak {
+                    reason: NakReason::VersionMismatch,
+                    ..
+                } => Some(Err(LinkError::Version {
+                    port: port.clone(),
+                    theirs: 0,
+                })),
+                _ => None,
+            },
+        )
+    }
+
+    /// Configures the identifier; the device acks or refuses (`BadConfig`).
+    pub fn configure(&mut self, config: &WireConfig) -> Result<(), LinkError> {
+        let port = self.port.clone();
+        self.command(
+            &HostMsg::Configure(*config),
+            "the answer to Configure",
+            |reply| match *reply {
+                DeviceMsg::Ack { seq: CONTROL_SEQ } => Some(Ok(())),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the configuration",
+                    reason,
+                })),
+                _ => None,
+            },
+        )
+    }
+
+    /// Streams `samples` in batches numbered from 0, every one applied exactly once.
+    pub fn stream(&mut self, samples: &[WireSample]) -> Result<(), LinkError> {
+        let batch_len = self.options.batch.clamp(1, lssi_proto::MAX_BATCH);
+        let window = self.options.window.max(1);
+        let total = samples.len().div_ceil(batch_len);
+        self.stats.samples = samples.len() as u64;
+        let mut next = 0usize;
+        let mut in_flight: VecDeque<InFlight> = VecDeque::with_capacity(window);
+        // After a go-back to `s`, the batches that were behind the lost one are naked with `s`
+        // once each before the resent ones arrive: that many naks of `s` say nothing new.
+        let mut stale: Option<(u32, usize)> = None;
+        let mut resend = false;
+        let base_timeout = self.options.timeout.max(
+            4 * self
+                .options
+                .line_time(window * lssi_proto::MAX_HOST_FRAME_LEN),
+        );
+        let mut timeout = base_timeout;
+        let mut last_progress = Instant::now();
+        let started = Instant::now();
+        self.started = Some(started);
+        self.last_heard = started;
+        loop {
+            if resend {
+                resend = false;
+                for i in 0..in_flight.len() {
+                    let frame = std::mem::take(&mut in_flight[i].frame);
+                    let result = self.write_bytes(&frame);
+                    in_flight[i].frame = frame;
+                    result?;
+                    self.stats.frames_sent += 1;
+                    self.stats.retransmits += 1;
+                }
+                self.observer.progress(&self.stats);
+            }
+            while in_flight.len() < window && next < total {
+                let chunk = &samples[next * batch_len..((next + 1) * batch_len).min(samples.len())];
+                let seq = next as u32;
+                let frame = batch_frame(seq, chunk);
+                self.write_bytes(&frame)?;
+                self.stats.frames_sent += 1;
+                self.stats.sample_bytes += frame.len() as u64;
+                self.stats.samples_sent += chunk.len() as u64;
+                in_flight.push_back(InFlight {
+                    seq,
+                    frame,
+                    samples: chunk.len(),
+                });
+                next += 1;
+            }
+            if in_flight.is_empty() {
+                break;
+            }
+            let wait = timeout.saturating_sub(last_progress.elapsed());
+            let event = self.receive(wait)?;
+            match event {
+                Some(Event::Message(DeviceMsg::Ack { seq })) if seq != CONTROL_SEQ => {
+                    if self.acknowledge(&mut in_flight, seq) {
+                        last_progress = Instant::now();
+                        timeout = base_timeout;
+                        stale = None;
+                    }
+                }
+                Some(Event::Message(DeviceMsg::Nak { seq, reason })) if seq != CONTROL_SEQ => {
+                    match reason {
+                        NakReason::OutOfOrder | NakReason::Decode | NakReason::Crc => {
+                            // Everything before `seq` was applied.
+                            if seq > 0 && self.acknowledge(&mut in_flight, seq - 1) {
+                                last_progress = Instant::now();
+                                timeout = base_timeout;
+                                stale = None;
+                            }
+                            let unsent = in_flight.front().is_none_or(|b| b.seq != seq);
+                            match &mut stale {
+                                _ if unsent => {}
+                                Some((s, left)) if *s == seq && *left > 0 => *left -= 1,
+                                _ => {
+                                    let behind = in_flight.len().saturating_sub(1);
+                                    stale = Some((seq, behind));
+                                    resend = true;
+                                    last_progress = Instant::now();
+                                }
+                            }
+                        }
+                        NakReason::Busy | NakReason::Overflow => {
+                            std::thread::sleep(self.options.line_time(MAX_FRAME_LEN));
+                            resend = true;
+                            stale = Some((in_flight.front().map_or(0, |b| b.seq), in_flight.len()));
+                            last_progress = Instant::now();
+                        }
+                        NakReason::NotConfigured
+                        | NakReason::BadConfig
+                        | NakReason::VersionMismatch => {
+                            return Err(LinkError::Refused {
+                                port: self.port.clone(),
+                                command: "a sample batch",
+                                reason,
+                            });
+                        }
+                    }
+                }
+                Some(_) => {}
+                None => {
+                    if self.last_heard.elapsed() >= self.options.silence {
+                        return Err(LinkError::Silent {
+                            port: self.port.clone(),
+                            waiting_for: "acknowledgements of sample batches",
+                            waited: self.last_heard.elapsed(),
+                        });
+                    }
+                    if last_progress.elapsed() >= timeout {
+                        self.stats.timeouts += 1;
+                        resend = true;
+                        stale = Some((in_flight.front().map_or(0, |b| b.seq), in_flight.len()));
+                        timeout = (timeout * 2).min(4 * base_timeout);
+                        last_progress = Instant::now();
+                    }
+                }
+            }
+        }
+        self.stats.stream_seconds = started.elapsed().as_secs_f64();
+        self.observer.progress(&self.stats);
+        Ok(())
+    }
+
+    /// Drops the batches up to `seq`; whether any was dropped.
+    fn acknowledge(&mut self, in_flight: &mut VecDeque<InFlight>, seq: u32) -> bool {
+        let mut any = false;
+        while let Some(front) = in_flight.front() {
+            if front.seq > seq {
+                break;
+            }
+            self.stats.samples_acked += front.samples as u64;
+            in_flight.pop_front();
+            any = true;
+        }
+        if any {
+            if let Some(started) = self.started {
+                self.stats.stream_seconds = started.elapsed().as_secs_f64();
+            }
+            self.observer.progress(&self.stats);
+        }
+        any
+    }
+
+    /// Asks for the model: the device screens and answers `Model` (if it has one) and
+    /// `Health`. Returns the snapshot (`None`: no model yet) and the health counters, and
+    /// settles `samples_lost` and `crc_errors` from them.
+    pub fn query(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {
+        let mut model = None;
+        let port = self.port.clone();
+        let health = self.command(
+            &HostMsg::Query,
+            "the model (the answer to Query)",
+            |reply| match reply {
+                DeviceMsg::Model(snapshot) if snapshot.cause == SnapshotCause::Query => {
+                    model = Some(snapshot.clone());
+                    None
+                }
+                DeviceMsg::Health {
+                    samples,
+                    rejected,
+                    crc_errors,
+                    duplicates,
+                    frames_ok,
+                    ..
+                } => Some(Ok(Health {
+                    samples: *samples,
+                    rejected: *rejected,
+                    crc_errors: *crc_errors,
+                    duplicates: *duplicates,
+                    frames_ok: *frames_ok,
+                })),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the query",
+                    reason: *reason,
+                })),
+                _ => None,
+            },
+        )?;
+        let counted = health.samples + health.rejected;
+        if counted > self.stats.samples {
+            return Err(LinkError::Overcount {
+                port: self.port.clone(),
+                sent: self.stats.samples,
+                counted,
+            });
+        }
+        self.stats.samples_lost = self.stats.samples - counted;
+        self.stats.crc_errors = u64::from(health.crc_errors) + self.stats.rx_crc_errors;
+        self.stats.duplicates = u64::from(health.duplicates);
+        Ok((model, health))
+    }
+
+    /// Writes the link counters to the telemetry log as the session's summary.
+    pub fn log_summary(&mut self) -> Result<(), LinkError> {
+        let summary = serde_json::to_vec(&self.stats).unwrap_or_default();
+        self.log_record(RecordKind::Summary, now_us(), &summary)
+    }
+}
+
+/// The frame of one batch of samples, numbered `seq`.
+///
+/// The samples must share their channels (a recording's do); at most
+/// [`lssi_proto::MAX_BATCH`] of them.
+pub fn batch_frame(seq: u32, samples: &[WireSample]) -> Vec<u8> {
+    let channels = samples.first().map_or(Channels::X, Channels::of);
+    let mut batch = SampleBatch::new(seq, channels);
+    for sample in samples {
+        // A recording's samples all have the same channels and a chunk fits a batch.
+        let _ = batch.push(*sample);
+    }
+    let mut frame = vec![0u8; lssi_proto::MAX_HOST_FRAME_LEN];
+    let len = encode(&HostMsg::Samples(batch), &mut frame).unwrap_or(0);
+    frame.truncate(len);
+    frame
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_batch_frame_decodes_to_its_samples() {
+        let samples: Vec<WireSample> = (0..5)
+            .map(|i| WireSample {
+                t: f64::from(i) * 0.002,
+                x: i as f32,
+                v: Some(0.5),
+                u: None,
+            })
+            .collect();
+        let mut frame = batch_frame(9, &samples);
+        assert_eq!(frame.last(), Some(&0));
+        let len = frame.len() - 1;
+        match decode_frame::<HostMsg>(&mut frame[..len]).unwrap() {
+            HostMsg::Samples(batch) => {
+                assert_eq!(batch.seq, 9);
+                assert_eq!(batch.iter().collect::<Vec<_>>(), samples);
+            }
+            other => panic!("not a batch: {other:?}"),
+        }
+    }
+}

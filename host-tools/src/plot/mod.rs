@@ -1,0 +1,100 @@
+//! Pictures of a recording and its identified model, as PNG and SVG (`lssi plot`).
+//!
+//! Five figures, each written as `<stem>-<name>.png` and `.svg`:
+//!
+//! | name | shows | paper |
+//! |---|---|---|
+//! | `model` | the recording against the identified model's free simulation (RK4 from the first sample), whole record and a close-up | Fig. 7 |
+//! | `screening` | held-out mean error of every solution of the threshold sweep, the one MES selected, and the terms per solution | Figs. 6, 12 |
+//! | `k-neighbours` | the k-neighbour reconstruction error ε(K) of x and of v, and the K chosen | Fig. 4 |
+//! | `coefficients` | each selected term's coefficient as identified from the record up to time t (the streaming view) | — |
+//! | `phase` | the phase portrait (x, v) with the unforced model's equilibria; for a double well the wells and the saddle | — |
+//!
+//! Text is drawn with DejaVu Sans, shipped in `assets/fonts` and embedded in the binary, so
+//! the PNGs look the same on any machine and nothing depends on the system's fonts.
+
+mod data;
+mod draw;
+
+use std::path::{Path, PathBuf};
+
+use crate::error::CliError;
+use crate::identify::{Options, Report};
+use crate::recording::Recording;
+
+pub use data::{History, Neighbours, Reconstruction, envelope, history, neighbours, velocity};
+pub use draw::{PlotError, Units};
+
+/// One figure written to disk.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Written {
+    /// Short name (`model`, `screening`, …).
+    pub figure: String,
+    /// The PNG file.
+    pub png: PathBuf,
+    /// The SVG file.
+    pub svg: PathBuf,
+}
+
+/// Draws every figure of `recording`, identified as `report` says (with the options that made
+/// it), into `dir` (created if missing). Returns the files written and, for each figure that
+/// could not be drawn, a sentence saying why.
+pub fn plot_all(
+    recording: &Recording,
+    options: &Options,
+    report: &Report,
+    dir: &Path,
+    units: &Units,
+) -> Result<(Vec<Written>, Vec<String>), CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    draw::register_font().map_err(|e| CliError::Identify(e.to_string()))?;
+    let (config, _) =
+        crate::identify::configure(recording, options).map_err(|e| CliError::Identify(e.0))?;
+    let stem = recording
+        .path
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    let mut written = Vec::new();
+    let mut skipped = Vec::new();
+    let mut emit = |name: &str, result: Result<Written, PlotError>| match result {
+        Ok(w) => written.push(w),
+        Err(PlotError::Skipped(why)) => skipped.push(format!("{name}: {why}")),
+        Err(e) => skipped.push(format!("{name}: {e}")),
+    };
+    let base = dir.join(&stem);
+    let velocity = data::velocity(recording, &config);
+    emit(
+        "model",
+        draw::model(&base, recording, &velocity, report, units),
+    );
+    emit("screening", draw::screening(&base, report, units));
+    emit(
+        "k-neighbours",
+        match data::neighbours(recording, &config) {
+            Some(n) => draw::neighbours(&base, &n, report, units),
+            None => Err(PlotError::Skipped(
+                "too few regression rows for ε(K).".into(),
+            )),
+        },
+    );
+    let history = if options.f32 {
+        data::history::<f32>(recording, &config)
+    } else {
+        data::history::<f64>(recording, &config)
+    };
+    emit(
+        "coefficients",
+        match history {
+            Some(h) => draw::coefficients(&base, &h, report),
+            None => Err(PlotError::Skipped("the identifier cannot be built.".into())),
+        },
+    );
+    emit(
+        "phase",
+        draw::phase(&base, recording, &velocity, report, units),
+    );
+    Ok((written, skipped))
+}

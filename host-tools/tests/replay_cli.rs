@@ -1,0 +1,174 @@
+//! `lssi replay` as a person runs it: the same JSON as `lssi identify --f32 --json` plus
+//! `"link"`; a simulator killed mid-replay gives one sentence naming the port and leaves a
+//! readable log; bad flags and missing devices are one sentence each.
+//!
+//! These start firmware-sim, which `cargo test --workspace` builds next to `lssi` (see
+//! `tests/tests/replay.rs` for how it is found).
+
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+use lssi_host::telemetry::{RecordKind, read_log};
+
+fn lssi(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn bundled() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/paper-eq17.csv")
+}
+
+fn require_firmware_sim() {
+    let next_to_lssi = Path::new(env!("CARGO_BIN_EXE_lssi")).with_file_name("firmware-sim");
+    assert!(
+        next_to_lssi.is_file() || std::env::var_os("LSSI_FIRMWARE_SIM").is_some(),
+        "{} is not built: run `cargo test --workspace` (or `cargo build -p firmware-sim --profile test`)",
+        next_to_lssi.display()
+    );
+}
+
+#[test]
+fn replay_json_is_identify_json_plus_the_link() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    // A copy of the recording, so that the default log lands in the temporary directory.
+    let file = dir.path().join("eq17.csv");
+    std::fs::copy(bundled(), &file).unwrap();
+    let file = file.to_str().unwrap();
+
+    let identify = lssi(&["identify", "--f32", "--json", file]);
+    assert!(identify.status.success());
+    let identify: serde_json::Value = serde_json::from_slice(&identify.stdout).unwrap();
+
+    let replay = lssi(&["replay", "--json", "--baud", "4000000", file]);
+    assert!(
+        replay.status.success(),
+        "{}",
+        String::from_utf8_lossy(&replay.stderr)
+    );
+    let mut replay: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    let link = replay.as_object_mut().unwrap().remove("link").unwrap();
+    assert_eq!(replay, identify);
+    for key in ["frames_sent", "retransmits", "crc_errors"] {
+        assert!(link[key].is_u64(), "{key} in {link}");
+    }
+    assert_eq!(link["samples_lost"], 0);
+
+    // The default log is next to the input, and `lssi log` reads it.
+    let log = dir.path().join("eq17.tlm");
+    let out = lssi(&["log", log.to_str().unwrap()]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("model (query, 20001 samples): x'' ="),
+        "{text}"
+    );
+    assert!(text.contains("summary:"), "{text}");
+}
+
+/// The children of a process (Linux: /proc/PID/task/PID/children).
+fn children(pid: u32) -> Vec<u32> {
+    std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children"))
+        .unwrap_or_default()
+        .split_whitespace()
+        .filter_map(|p| p.parse().ok())
+        .collect()
+}
+
+#[test]
+fn killing_the_simulator_mid_replay_names_the_port_and_keeps_the_log() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("killed.tlm");
+    // 115 200 baud: the replay takes about 30 s, far longer than it takes to kill it.
+    let child = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(["replay", "--baud", "115200", "--log", log.to_str().unwrap()])
+        .arg(bundled())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until some acknowledgements are in the log (no time limit: the test harness has
+    // one), then kill the simulator.
+    let sim = loop {
+        let frames = std::fs::read(&log)
+            .ok()
+            .and_then(|bytes| read_log(&bytes).ok())
+            .map_or(0, |c| {
+                c.records
+                    .iter()
+                    .filter(|r| r.kind == RecordKind::Frame)
+                    .count()
+            });
+        let sims = children(child.id());
+        if frames >= 20 && !sims.is_empty() {
+            break sims[0];
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let killed = Command::new("kill")
+        .args(["-9", &sim.to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("lssi: /dev/pts/"), "{stderr}");
+    assert!(stderr.contains("the link closed"), "{stderr}");
+    assert!(out.stdout.is_empty());
+
+    // The log holds everything received, whole, and ends with why the replay stopped.
+    let contents = read_log(&std::fs::read(&log).unwrap()).unwrap();
+    assert!(contents.partial_tail.is_none());
+    assert!(contents.records.iter().any(|r| r.kind == RecordKind::Note
+        && String::from_utf8_lossy(&r.data).starts_with("replay stopped: /dev/pts/")));
+    let out = lssi(&["log", log.to_str().unwrap()]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("hello: protocol"), "{text}");
+    assert!(text.contains("note: replay stopped"), "{text}");
+}
+
+#[test]
+fn bad_flags_and_missing_devices_are_one_sentence() {
+    let file = bundled();
+    let file = file.to_str().unwrap();
+    let cases: [(&[&str], i32, &str); 5] = [
+        (&["--flip-rate", "2"], 2, "--flip-rate 2 cannot be used"),
+        (&["--batch", "25"], 2, "--batch 25 cannot be used"),
+        (&["--harmonics", "9"], 2, "--harmonics 9 cannot be used"),
+        (
+            &["--port", "/nonexistent/ttyUSB9"],
+            1,
+            "/nonexistent/ttyUSB9: cannot open the serial port",
+        ),
+        (
+            &["--qemu", "--firmware", "/nonexistent/fw.elf"],
+            2,
+            "/nonexistent/fw.elf: the firmware image does not exist",
+        ),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("bad.tlm");
+    for (flags, code, start) in cases {
+        let mut args = vec!["replay", "--log", log.to_str().unwrap()];
+        args.extend_from_slice(flags);
+        args.push(file);
+        let out = lssi(&args);
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(code), "{flags:?}: {stderr}");
+        assert!(
+            stderr.starts_with(&format!("lssi: {start}")),
+            "{flags:?}: {stderr}"
+        );
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    }
+}

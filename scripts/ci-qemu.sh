@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Everything CI needs for the firmware, on a fresh Debian/Ubuntu machine:
+#   1. qemu-system-arm (apt) and defmt-print (cargo install) when missing;
+#   2. the firmware's release ELF (crates/lssi-firmware, thumbv7em-none-eabihf);
+#   3. its smoke test under QEMU (crates/lssi-firmware/scripts/qemu-check.sh);
+#   4. the end-to-end test: the bundled recording replayed through the firmware under QEMU
+#      must give the model of `lssi identify --f32` (tests/tests/qemu.rs), with
+#      LSSI_REQUIRE_QEMU=1 so that a missing QEMU or ELF fails instead of skipping;
+#   5. the identifier's cost, size and stack table (scripts/firmware-bench.sh).
+# Exits non-zero at the first failure. LSSI_CI_SKIP_BENCH=1 leaves out step 5.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+
+step() { echo; echo "== ci-qemu: $*"; }
+
+step "tools"
+if ! command -v qemu-system-arm >/dev/null; then
+    sudo=""
+    if [[ $(id -u) -ne 0 ]]; then sudo="sudo"; fi
+    $sudo apt-get update
+    $sudo apt-get install -y --no-install-recommends qemu-system-arm
+fi
+qemu-system-arm --version | head -1
+if ! command -v defmt-print >/dev/null; then
+    cargo install defmt-print --locked
+fi
+rustup target add thumbv7em-none-eabihf >/dev/null
+rustup component add llvm-tools >/dev/null
+
+step "firmware release ELF"
+(cd crates/lssi-firmware && cargo build --release --locked)
+elf="$root/crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-firmware"
+ls -l "$elf"
+
+step "firmware smoke test under QEMU"
+crates/lssi-firmware/scripts/qemu-check.sh
+
+step "replay through the QEMU firmware == lssi identify --f32"
+LSSI_REQUIRE_QEMU=1 LSSI_FIRMWARE_ELF="$elf" \
+    cargo test --release --locked -p lssi-tests --test qemu -- --nocapture
+
+if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then
+    step "identifier cost, size and stack on the Cortex-M4F"
+    scripts/firmware-bench.sh
+fi

@@ -1,0 +1,164 @@
+#!/usr/bin/env bash
+# Cost, size and stack of lssi-core's identifier on the Cortex-M4F, as one table.
+#
+#   scripts/firmware-bench.sh            # builds 3 images, runs 2 under QEMU (about 1 min)
+#   LSSI_BENCH_RAW=1 scripts/firmware-bench.sh   # also print the firmware's raw lines
+#
+# The configuration is the device default: Identifier<f32, 256, 16>, x and a measured x',
+# window 255, the eq. 18 library (1, monomials of (x, x') to order 3, sin/cos(kΩt) for
+# k = 1..3), a screening every 10 000 samples; the signal is eq. 17, made on the device
+# (crates/lssi-firmware/src/bench_identifier.rs). Three release images of lssi-firmware:
+#   bench-identifier  30 000 samples through Identifier::push, each timed; flash and RAM
+#   bench-baseline    the same image without the identifier: the flash difference is its own
+#   bench-profile     the stages of a regression row timed one by one
+# Costs are executed instructions: SysTick under `qemu-system-arm -icount shift=0` (one tick
+# = 40 instructions, calibrated at start-up). Stack is measured by painting.
+# Flash = .vector_table + .text + .rodata + .data image; static RAM = .data + .bss + .uninit
+# (llvm-size from `rustup component add llvm-tools`).
+# Needs qemu-system-arm and defmt-print (cargo install defmt-print --locked).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root/crates/lssi-firmware"
+
+host=$(rustc -vV | sed -n 's/^host: //p')
+llvm_size="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-size"
+for tool in "$llvm_size" qemu-system-arm defmt-print; do
+    if ! command -v "$tool" >/dev/null; then
+        echo "firmware-bench: $tool not found (llvm-tools: rustup component add llvm-tools;" \
+            "apt-get install qemu-system-arm; cargo install defmt-print --locked)" >&2
+        exit 1
+    fi
+done
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+elf=target/thumbv7em-none-eabihf/release/lssi-firmware
+
+for image in bench-identifier bench-baseline bench-profile; do
+    cargo build --release --locked --quiet --features "$image"
+    cp "$elf" "$work/$image.elf"
+done
+
+run() { # run IMAGE: the image under QEMU, its defmt lines decoded into IMAGE.out
+    local e="$work/$1.elf"
+    timeout "${LSSI_TIMEOUT:-300}" qemu-system-arm -machine mps2-an386 -cpu cortex-m4 \
+        -nographic -monitor none -serial null \
+        -semihosting-config enable=on,target=native -icount shift=0 -kernel "$e" |
+        defmt-print -e "$e" >"$work/$1.out"
+    if ! grep -q 'bench-id end' "$work/$1.out"; then
+        cat "$work/$1.out" >&2
+        echo "firmware-bench: $1 did not finish" >&2
+        exit 1
+    fi
+    if [[ -n ${LSSI_BENCH_RAW:-} ]]; then cat "$work/$1.out"; fi
+}
+run bench-identifier
+run bench-profile
+
+sizes() { # sizes IMAGE: "flash_code flash_total static_ram"
+    "$llvm_size" -A "$work/$1.elf" | awk '
+        { s[$1] = $2 }
+        END {
+            code = s[".text"] + s[".rodata"]
+            print code, s[".vector_table"] + code + s[".data"], s[".data"] + s[".bss"] + s[".uninit"]
+        }'
+}
+read -r code total ram < <(sizes bench-identifier)
+read -r base_code _ base_ram < <(sizes bench-baseline)
+
+# Every figure line reads "INFO  bench-id KEY ..." (key=value pairs or one value).
+out="$work/bench-identifier.out"
+prof="$work/bench-profile.out"
+field() { # field FILE KEY NAME: the value of NAME=... on KEY's line
+    sed -n "s/.*bench-id $2 .*$3=\([0-9]*\).*/\1/p" "$1" | head -1
+}
+value() { # value FILE KEY: the number after KEY
+    sed -n "s/.*bench-id $2 \([0-9]*\).*/\1/p" "$1" | head -1
+}
+
+all_mean=$(field "$out" push_all mean)
+steady_mean=$(field "$out" push_steady mean)
+steady_max=$(field "$out" push_steady max)
+idle_mean=$(field "$out" push_idle mean)
+row_mean=$(field "$out" push_row mean)
+row_max=$(field "$out" push_row max)
+merge_mean=$(field "$out" push_row_merge mean)
+merge_max=$(field "$out" push_row_merge max)
+warmup=$(field "$out" push_warmup max)
+screen_count=$(field "$out" push_screen count)
+screen_mean=$(field "$out" push_screen mean)
+screen_max=$(field "$out" push_screen max)
+final_screen=$(value "$out" final_screen)
+push_stack=$(value "$out" push_stack)
+screen_stack=$(value "$out" screen_stack)
+new_cost=$(value "$out" new_cost)
+new_stack=$(value "$out" new_stack)
+id_size=$(value "$out" size_of_identifier)
+fir=$(field "$prof" stage_fir4 mean)
+knn_plain=$(field "$prof" stage_knn2_plain mean)
+knn_eval=$(field "$prof" stage_knn2_eval mean)
+library=$(field "$prof" stage_library mean)
+givens=$(field "$prof" stage_givens mean)
+merge=$(field "$prof" stage_merge mean)
+for v in all_mean steady_max screen_max push_stack screen_stack fir knn_plain givens merge; do
+    if [[ -z ${!v} ]]; then
+        cat "$out" "$prof" >&2
+        echo "firmware-bench: no figure for $v in the firmware's output" >&2
+        exit 1
+    fi
+done
+
+stack_peak=$((push_stack > screen_stack ? push_stack : screen_stack))
+ram_total=$((ram + stack_peak))
+ram_stream=$((ram + push_stack))
+worst=$((steady_max > final_screen ? steady_max : final_screen))
+worst=$((screen_max > worst ? screen_max : worst))
+# A row every 4 samples, a block merge every 127 rows (508 samples), a screening every 10 000.
+knn_row=$(((3 * knn_plain + knn_eval) / 4))
+
+check() { # check VALUE LIMIT: "ok" or "OVER"
+    if (($1 <= $2)); then echo "ok"; else echo "OVER"; fi
+}
+pct() { # pct PART WHOLE
+    awk -v p="$1" -v w="$2" 'BEGIN { printf "%.0f %%", 100 * p / w }'
+}
+
+echo
+echo "lssi-core Identifier<f32, 256, 16> on a Cortex-M4F (QEMU mps2-an386, -icount shift=0)"
+echo "eq. 17 signal, x and x' measured, window 255, eq. 18 library (16 terms); $(rustc -V | cut -d' ' -f1-2)"
+echo
+printf '| %-52s | %12s | %-14s | %-14s |\n' "figure" "measured" "target" "goal 32K/8K/2000"
+printf '|%s|%s|%s|%s|\n' "$(printf -- '-%.0s' {1..54})" "$(printf -- '-%.0s' {1..14})" \
+    "$(printf -- '-%.0s' {1..16})" "$(printf -- '-%.0s' {1..16})"
+row() { printf '| %-52s | %12s | %-14s | %-14s |\n' "$@"; }
+row "flash, .text+.rodata (identifier image)" "$code B" "<= 65536 $(check "$code" 65536)" "<= 32768 $(check "$code" 32768)"
+row "  of which the identifier (image - baseline)" "$((code - base_code)) B" "" ""
+row "  of which start-up, UART, defmt, meter, signal" "$base_code B" "" ""
+row "static RAM, .data+.bss" "$ram B" "" ""
+row "  of which the Identifier struct" "$id_size B" "" ""
+row "peak stack, streaming (push, no screening)" "$push_stack B" "" ""
+row "peak stack, screening" "$screen_stack B" "" ""
+row "RAM, static + peak stack" "$ram_total B" "<= 16384 $(check "$ram_total" 16384)" "<= 8192 $(check "$ram_total" 8192)"
+row "  without the screening's stack" "$ram_stream B" "<= 16384 $(check "$ram_stream" 16384)" "<= 8192 $(check "$ram_stream" 8192)"
+row "instructions/sample, mean (screening spread over it)" "$all_mean" "<= 5000 $(check "$all_mean" 5000)" "<= 2000 $(check "$all_mean" 2000)"
+row "  mean without the screening" "$steady_mean" "" ""
+row "  of which screenings ($screen_count in 30000 samples)" "$((all_mean - steady_mean)) (mean $screen_mean)" "" ""
+row "instructions/sample, worst outside screening" "$steady_max" "" ""
+row "  sample with a row, mean / worst" "$row_mean / $row_max" "" ""
+row "  sample with a row closing a block, mean / worst" "$merge_mean / $merge_max" "" ""
+row "  sample without a row, mean" "$idle_mean" "" ""
+row "screening (threshold sweep + MES), worst" "$screen_max" "stated" ""
+row "  at 64 MHz, at least: ms, samples at 10 kHz" \
+    "$(awk -v n="$screen_max" 'BEGIN { printf "%.0f ms, %.0f", n / 64e3, n / 6400 }')" "" ""
+row "one-off: warm-up flush (64 rows at once)" "$warmup" "" ""
+row "one-off: Identifier::new (taps design in f64)" "$new_cost" "" ""
+row "one-off: stack of constructing it" "$new_stack B" "" ""
+row "row stage: 4 FIR filters of 255 taps" "$fir" "/row" "$(pct $((fir / 4)) "$steady_mean")"
+row "row stage: kNN smoothing of x and v" "$knn_row" "/row" "$(pct $((knn_row / 4)) "$steady_mean")"
+row "row stage: library row (sinf, cosf, 16 terms)" "$library" "/row" "$(pct $((library / 4)) "$steady_mean")"
+row "row stage: Givens update of the block factor" "$givens" "/row" "$(pct $((givens / 4)) "$steady_mean")"
+row "block merge into A or B (every 127 rows)" "$merge" "/block" "$(pct $((merge / 508)) "$steady_mean")"
+echo
+echo "The last column shares out the mean without screening: a row every 4 samples, a block every 508."
+echo "Instructions, not cycles: a 64 MHz Cortex-M4F at 10 kHz has 6400 cycles a sample, and takes"
+echo "more than one cycle for some instructions (loads, branches, VDIV/VSQRT 14)."
