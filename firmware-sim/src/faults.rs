@@ -109,6 +109,9 @@ impl Injector {
     }
 }
 
+/// How far behind its schedule the pacer may be and still count the line as busy.
+pub const CATCH_UP: Duration = Duration::from_millis(3);
+
 /// Holds bytes back so that they leave at a UART's pace: `baud / 10` bytes a second (8N1).
 #[derive(Clone, Debug)]
 pub struct Pacer {
@@ -133,9 +136,18 @@ impl Pacer {
     }
 
     /// Sleeps until `n` more bytes, queued after everything before them, are through the line.
+    ///
+    /// A sleep overshoots by a fraction of a millisecond; on a line kept busy, that overshoot
+    /// is not idle line time, so the schedule is kept when it is behind by less than
+    /// [`CATCH_UP`] (otherwise every ~1 ms slice would lose its overshoot: about 20 % of the
+    /// line on a loaded machine). A line idle for longer starts afresh, as a UART does.
     pub fn wait(&mut self, n: usize) {
         let now = Instant::now();
-        let start = self.free_at.max(now);
+        let start = if now.saturating_duration_since(self.free_at) < CATCH_UP {
+            self.free_at
+        } else {
+            now
+        };
         self.free_at = start + self.byte_time * u32::try_from(n).unwrap_or(u32::MAX);
         if let Some(left) = self.free_at.checked_duration_since(now) {
             std::thread::sleep(left);

@@ -137,7 +137,8 @@ impl DeviceProcess {
     }
 
     /// Starts QEMU's mps2-an386 board with `firmware` and reads the pty its UART is on
-    /// (`char device redirected to /dev/pts/N (label serial0)` on its stderr).
+    /// (`char device redirected to /dev/pts/N (label serial0)`, the first line of its
+    /// standard output).
     pub fn qemu(firmware: &Path) -> Result<Self, StartError> {
         if !firmware.is_file() {
             return Err(StartError(format!(
@@ -164,24 +165,77 @@ impl DeviceProcess {
             .stderr(Stdio::piped())
             .spawn()
             .map_err(|e| StartError(format!("{}: cannot start QEMU: {e}", program.display())))?;
+        // QEMU 7 announces the pty on its standard output, before the firmware's semihosting
+        // bytes: read that line byte by byte (no buffering past it) on a thread, and hand the
+        // pipe back for the defmt bytes that follow.
         let stdout = child.stdout.take();
-        let stderr = child.stderr.take();
+        let messages = collect(child.stderr.take());
         let mut process = Self {
             child,
             pty: String::new(),
             name: "qemu-system-arm",
-            stdout,
-            messages: Arc::default(),
+            stdout: None,
+            messages,
         };
-        let Some(stderr) = stderr else {
-            return Err(StartError("QEMU's error output could not be read".into()));
+        let Some(mut stdout) = stdout else {
+            return Err(StartError("QEMU's output could not be read".into()));
         };
-        let lines = announce(BufReader::new(stderr), |line| {
-            let rest = line.split("redirected to ").nth(1)?;
-            rest.split_whitespace().next().map(str::to_string)
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = Vec::new();
+            let mut byte = [0u8; 1];
+            loop {
+                match stdout.read(&mut byte) {
+                    Ok(1) if byte[0] == b'\n' => {
+                        let text = String::from_utf8_lossy(&line).into_owned();
+                        line.clear();
+                        let pty = text
+                            .split("redirected to ")
+                            .nth(1)
+                            .and_then(|rest| rest.split_whitespace().next())
+                            .map(str::to_string);
+                        if let Some(pty) = pty {
+                            let _ = tx.send(Ok((pty, stdout)));
+                            return;
+                        }
+                        let _ = tx.send(Err(text));
+                    }
+                    Ok(1) => line.push(byte[0]),
+                    _ => return,
+                }
+            }
         });
-        process.pty = process.wait_for(lines, "`char device redirected to /dev/pts/N`")?;
-        Ok(process)
+        let started = Instant::now();
+        let mut last = String::new();
+        loop {
+            let left = STARTUP_TIMEOUT.saturating_sub(started.elapsed());
+            match rx.recv_timeout(left) {
+                Ok(Ok((pty, stdout))) => {
+                    process.pty = pty;
+                    process.stdout = Some(stdout);
+                    return Ok(process);
+                }
+                Ok(Err(line)) => last = line,
+                Err(_) => {
+                    let _ = process.child.kill();
+                    let _ = process.child.wait();
+                    std::thread::sleep(Duration::from_millis(50));
+                    if let Some(line) = process.take_messages().pop() {
+                        last = line;
+                    }
+                    let said = if last.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; its last line was {last:?}")
+                    };
+                    return Err(StartError(format!(
+                        "qemu-system-arm was expected to print `char device redirected to \
+                         /dev/pts/N`, but it did not within {} s{said}",
+                        STARTUP_TIMEOUT.as_secs()
+                    )));
+                }
+            }
+        }
     }
 
     fn wait_for(

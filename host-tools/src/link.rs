@@ -410,6 +410,9 @@ impl Drop for Reader {
     }
 }
 
+/// The shortest batch the adaptation goes down to (a frame of 4 samples is ~70 bytes).
+const MIN_ADAPTIVE_BATCH: usize = 4;
+
 /// One batch on the wire, kept until acknowledged.
 #[derive(Debug)]
 struct InFlight {
@@ -726,11 +729,16 @@ impl<'a> Link<'a> {
 
     /// Streams `samples` in batches numbered from 0, every one applied exactly once.
     pub fn stream(&mut self, samples: &[WireSample]) -> Result<(), LinkError> {
-        let batch_len = self.options.batch.clamp(1, lssi_proto::MAX_BATCH);
+        let max_batch = self.options.batch.clamp(1, lssi_proto::MAX_BATCH);
+        // The batch length adapts to the line (halved on every loss, doubled after a run of
+        // clean acknowledgements): at 0.2 % damaged bytes, half of the full 400-byte frames
+        // are hit, and go-back-N resends the whole window for each.
+        let mut batch_len = max_batch;
+        let mut clean = 0usize;
         let window = self.options.window.max(1);
-        let total = samples.len().div_ceil(batch_len);
         self.stats.samples = samples.len() as u64;
         let mut next = 0usize;
+        let mut offset = 0usize;
         let mut in_flight: VecDeque<InFlight> = VecDeque::with_capacity(window);
         // After a go-back to `s`, the batches that were behind the lost one are naked with `s`
         // once each before the resent ones arrive: that many naks of `s` say nothing new.
@@ -749,6 +757,8 @@ impl<'a> Link<'a> {
         loop {
             if resend {
                 resend = false;
+                batch_len = (batch_len / 2).max(MIN_ADAPTIVE_BATCH.min(max_batch));
+                clean = 0;
                 for i in 0..in_flight.len() {
                     let frame = std::mem::take(&mut in_flight[i].frame);
                     let result = self.write_bytes(&frame);
@@ -759,8 +769,9 @@ impl<'a> Link<'a> {
                 }
                 self.observer.progress(&self.stats);
             }
-            while in_flight.len() < window && next < total {
-                let chunk = &samples[next * batch_len..((next + 1) * batch_len).min(samples.len())];
+            while in_flight.len() < window && offset < samples.len() {
+                let chunk = &samples[offset..(offset + batch_len).min(samples.len())];
+                offset += chunk.len();
                 let seq = next as u32;
                 let frame = batch_frame(seq, chunk);
                 self.write_bytes(&frame)?;
@@ -785,6 +796,11 @@ impl<'a> Link<'a> {
                         last_progress = Instant::now();
                         timeout = base_timeout;
                         stale = None;
+                        clean += 1;
+                        if clean >= 2 * window {
+                            batch_len = (batch_len * 2).min(max_batch);
+                            clean = 0;
+                        }
                     }
                 }
                 Some(Event::Message(DeviceMsg::Nak { seq, reason })) if seq != CONTROL_SEQ => {

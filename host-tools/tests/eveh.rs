@@ -152,15 +152,15 @@ fn must_show(flags: &[&str]) {
     }
 }
 
-/// The documented command: the paper's odd library, smoothing off (see the next test).
+/// The documented command: the paper's odd library, everything else from the data (the
+/// k-neighbour smoothing decides per channel whether it helps; on these recordings it does not).
 #[test]
 fn shipped_recordings_meet_the_accuracy_criteria() {
-    must_show(&["--family", "odd", "--no-smoothing"]);
+    must_show(&["--family", "odd"]);
 }
 
-/// With the default k-neighbour smoothing the bistable well resonance is off by 1.06 %.
+/// The ablation: with the smoothing off by flag the criteria hold too.
 #[test]
-#[ignore = "k-neighbour smoothing (K = 2) biases ξx by +2.1 % on eveh-bistable: well resonance off by 1.06 % (> 1 %); mean error 0.85 % passes"]
-fn shipped_recordings_meet_the_accuracy_criteria_with_smoothing() {
-    must_show(&["--family", "odd"]);
+fn shipped_recordings_meet_the_accuracy_criteria_without_smoothing() {
+    must_show(&["--family", "odd", "--no-smoothing"]);
 }

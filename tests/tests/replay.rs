@@ -83,8 +83,9 @@ fn flips_drops_and_bursts_on_the_line_change_nothing() {
     let recording = Recording::read(bundled(), &ColumnNames::default()).unwrap();
     let mut faulty = args(&bundled(), &log, 4_000_000);
     let expected = identify_recording(&recording, &faulty.options().unwrap()).unwrap();
-    faulty.flip_rate = 1e-4;
-    faulty.drop_rate = 1e-4;
+    // The figure: 0.1 % of the bytes flipped and 0.1 % dropped, both directions.
+    faulty.flip_rate = 1e-3;
+    faulty.drop_rate = 1e-3;
     faulty.burst = 16;
     faulty.seed = 7;
     let report = replay(&faulty).unwrap();

@@ -191,22 +191,34 @@ impl<T: Real, const P: usize> Factor<T, P> {
     }
 
     /// Replaces the columns Θ by Θ·B and re-triangularises: R ← qr(R·B).
+    ///
+    /// In place: row i of R·B needs only row i of R (upper triangular), so each row is
+    /// computed into one row of scratch and written back; no P×P temporary is needed (the
+    /// screening calls this in its deepest frames, where the stack peaks).
     pub fn transform(&mut self, b: &[[T; P]; P]) {
         let n = self.n;
-        let mut c = [[T::ZERO; P]; P];
+        let mut row = [T::ZERO; P];
         for i in 0..n {
             for j in 0..n {
                 let mut s = T::ZERO;
                 for k in i..n {
                     s += self.r[i][k] * b[k][j];
                 }
-                c[i][j] = s;
+                row[j] = s;
             }
+            self.r[i][..n].copy_from_slice(&row[..n]);
         }
-        let mut z = self.z;
-        triangularise(&mut c, &mut z, n, n);
-        self.r = c;
-        self.z = z;
+        triangularise(&mut self.r, &mut self.z, n, n);
+    }
+
+    /// Makes this factor a copy of `other` without a temporary (same as `*self =
+    /// other.clone()`, but the compiler need not build the copy on the stack first).
+    pub fn copy_from(&mut self, other: &Self) {
+        self.n = other.n;
+        self.r = other.r;
+        self.z = other.z;
+        self.rho2 = other.rho2;
+        self.weight = other.weight;
     }
 
     /// Residual energy Σ λ^age (y − θᵀξ)² of a coefficient vector: ‖Rξ − z‖² + ρ².
@@ -248,6 +260,14 @@ impl<T: Real, const P: usize> Factor<T, P> {
     /// are set to zero. A column that is numerically dependent on the earlier kept ones is
     /// dropped from the support (its coefficient is zero). Returns the support actually used.
     pub fn solve(&self, support: u32, out: &mut [T]) -> u32 {
+        let mut work = [[T::ZERO; P]; P];
+        self.solve_in(support, out, &mut work)
+    }
+
+    /// [`Factor::solve`] with the caller's P×P scratch matrix (its contents on entry do not
+    /// matter): the screening, which solves thousands of times, lends it one, so that its
+    /// deepest frame does not hold another kilobyte (P = 16, f32).
+    pub fn solve_in(&self, support: u32, out: &mut [T], work: &mut [[T; P]; P]) -> u32 {
         let n = self.n.min(out.len());
         for o in out.iter_mut() {
             *o = T::ZERO;
@@ -263,8 +283,9 @@ impl<T: Real, const P: usize> Factor<T, P> {
         if m == 0 {
             return 0;
         }
-        // Work matrix: the kept columns of R (n × m, staircase) and z.
-        let mut a = [[T::ZERO; P]; P];
+        // Work matrix: the kept columns of R (n × m, staircase) and z. Only its n × m block
+        // is written and read.
+        let a = work;
         for i in 0..n {
             for (p, &j) in columns[..m].iter().enumerate() {
                 a[i][p] = if j >= i { self.r[i][j] } else { T::ZERO };
@@ -273,7 +294,7 @@ impl<T: Real, const P: usize> Factor<T, P> {
         let mut z = self.z;
         // Each kept column j has nonzeros in rows 0..=j only (the rotations keep it so, and
         // skip the zeros below).
-        triangularise(&mut a, &mut z, n, m);
+        triangularise(a, &mut z, n, m);
         // Back substitution, dropping columns whose pivot is negligible against their norm.
         let mut used = support;
         let tolerance = T::EPSILON * T::from_f64(64.0);

@@ -27,7 +27,7 @@
 //! ```
 
 use crate::config::Config;
-use crate::derivative::Taps;
+use crate::derivative::{FoldedTaps, Taps};
 use crate::factor::Factor;
 use crate::library::{Library, Term};
 use crate::model::{MAX_SOLUTIONS, Model, Solution};
@@ -49,6 +49,43 @@ const GATE: f64 = 0.01;
 /// Measured on eq. 17: a true sensor offset lowers the error by 3 % or more at δ ≤ 0.01; a
 /// spurious origin at δ = 0.1 with x only differs by under 0.5 %.
 const ORIGIN_TIE: f64 = 0.01;
+
+/// Rows the (sin, cos) phasor of Ωt is rotated across before it is recomputed from t.
+///
+/// Each rotation by the fixed (sin, cos) of Ω·(row period) rounds the phasor by about
+/// 2 ulp in magnitude and angle, so after 64 rows its error is at most 64·2·2⁻²⁴ ≈ 8·10⁻⁶
+/// in f32 (10⁻¹⁴ in f64), far below the sensor noise and the 1-ulp error of sinf itself;
+/// the exact recomputation costs a sinf and a cosf (about 3 000 instructions on the M4F in
+/// software f64 range reduction), 1/64 of what every row paid before.
+const PHASOR_RESYNC: u16 = 64;
+
+/// Golden-section steps of the origin search (each one transform and one solve), by
+/// precision. Near its minimum the residual energy is flat to second order, so an origin is
+/// resolved only to about √ε of the bracket: 0.618ⁿ ≤ √ε needs n ≥ 17 in f32 and 38 in f64.
+/// Steps beyond that only chase rounding; in f32 they were a third of a screening.
+fn golden_steps<T: Real>() -> usize {
+    if T::EPSILON.to_f64() > 1e-10 { 20 } else { 40 }
+}
+
+/// The screening's working factors: A and B (with the block in progress), their union, and
+/// one column map. One set, filled anew for each origin tried (see `Identifier::prepare`).
+struct Work<T, const P: usize> {
+    a: Factor<T, P>,
+    b: Factor<T, P>,
+    all: Factor<T, P>,
+    m: [[T; P]; P],
+}
+
+impl<T: Real, const P: usize> Work<T, P> {
+    fn new(n: usize) -> Self {
+        Self {
+            a: Factor::new(n),
+            b: Factor::new(n),
+            all: Factor::new(n),
+            m: [[T::ZERO; P]; P],
+        }
+    }
+}
 
 /// One measurement.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -136,7 +173,7 @@ struct Row<T> {
 pub struct Identifier<T: Real, const W: usize, const P: usize> {
     config: Config,
     library: Library<P>,
-    taps: Taps<T, W>,
+    taps: FoldedTaps<T, W>,
     x: HistoryBuf<T, W>,
     v: HistoryBuf<T, W>,
     u: HistoryBuf<T, W>,
@@ -172,8 +209,31 @@ pub struct Identifier<T: Real, const W: usize, const P: usize> {
     short_alpha: T,
     x_min: T,
     x_max: T,
+    /// Σ(v̂ − dx̂/dt) over the rows, with dx̂/dt telescoped (see `row`), but for the half
+    /// difference `dv_last` of the current segment's newest row.
     dv_sum: T,
     dv_weight: T,
+    /// x̂ of the previous row of this segment (since the last gap) and the segment's rows.
+    dv_prev: T,
+    dv_rows: u32,
+    /// (x̂ₙ − x̂ₙ₋₁)/h of the newest row of this segment: the end correction.
+    dv_last: T,
+    /// 1/h, h the time between rows.
+    inverse_row_period: T,
+    /// sin and cos of Ω t at `phasor_t`, the time of the last folded row.
+    phasor: (T, T),
+    phasor_t: Option<f64>,
+    /// Rotations since the phasor was last computed exactly.
+    phasor_age: u16,
+    /// sin and cos of Ω h: one row's rotation.
+    rotation: (T, T),
+    /// Magnitudes below this are within `max_abs` for sure (compared in T, not f64).
+    max_abs_sure: T,
+    /// 0.5 and 1.5 sample periods: a sample closer than `too_early` to the previous one is
+    /// out of order, one later than `gap_after` starts after a gap (precomputed: f64
+    /// arithmetic is in software on the M4F).
+    too_early: f64,
+    gap_after: f64,
     counters: Counters,
     since_screen: u32,
     model: Option<Model<T, P>>,
@@ -197,10 +257,12 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let norm = |h: &[T]| h.iter().fold(T::ZERO, |a, &v| a + v * v);
         let v_order = if config.channels.velocity { 0 } else { 1 };
         let gains = (norm(taps.taps(0)), norm(taps.taps(v_order)));
+        let taps = FoldedTaps::fold(&taps);
         let n = library.len();
         let stride = usize::from(config.row_stride);
         let block_len = (2 * config.window / stride).max(16) as u64;
         let row_period = config.sample_period * f64::from(config.row_stride);
+        let step = config.omega * row_period;
         let lambda = config
             .memory
             .map_or(1.0, |tau| libm::exp(-row_period / tau));
@@ -240,6 +302,17 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             x_max: -T::MAX,
             dv_sum: T::ZERO,
             dv_weight: T::ZERO,
+            dv_prev: T::ZERO,
+            dv_rows: 0,
+            dv_last: T::ZERO,
+            inverse_row_period: T::from_f64(1.0 / row_period),
+            phasor: (T::ZERO, T::ONE),
+            phasor_t: None,
+            phasor_age: 0,
+            rotation: (T::from_f64(libm::sin(step)), T::from_f64(libm::cos(step))),
+            max_abs_sure: T::from_f64(config.max_abs * (1.0 - 1e-6)),
+            too_early: 0.5 * config.sample_period,
+            gap_after: 1.5 * config.sample_period,
             counters: Counters::default(),
             since_screen: 0,
             model: None,
@@ -294,9 +367,8 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             }
             return Err(r);
         }
-        let dt = self.config.sample_period;
         if let Some(last) = self.last_t
-            && sample.t - last > 1.5 * dt
+            && sample.t - last > self.gap_after
         {
             self.restart();
             self.counters.gaps += 1;
@@ -342,11 +414,18 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             return Err(Rejection::NonFinite);
         }
         let limit = self.config.max_abs;
-        if values.iter().flatten().any(|v| v.abs().to_f64() > limit) {
+        // Compared in T first (soft f64 is dear on the M4F); only a value within 10⁻⁶ of the
+        // limit is compared exactly.
+        let sure = self.max_abs_sure;
+        if values
+            .iter()
+            .flatten()
+            .any(|v| !(v.abs() < sure) && v.abs().to_f64() > limit)
+        {
             return Err(Rejection::OutOfRange);
         }
         if let Some(last) = self.last_t
-            && s.t - last < 0.5 * self.config.sample_period
+            && s.t - last < self.too_early
         {
             return Err(Rejection::OutOfOrder);
         }
@@ -406,6 +485,15 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         self.smooth_v.restart();
         self.delay_len = 0;
         self.delay_head = 0;
+        // Close the velocity-offset segment: its end correction becomes final.
+        self.dv_sum -= T::from_f64(0.5) * self.dv_last;
+        self.dv_last = T::ZERO;
+        self.dv_rows = 0;
+    }
+
+    /// The velocity offset mean(v̂ − dx/dt) over the rows so far.
+    fn velocity_offset(&self) -> T {
+        (self.dv_sum - T::from_f64(0.5) * self.dv_last) / self.dv_weight
     }
 
     /// Computes the regression row whose centre lies half a window behind `t_newest`.
@@ -433,9 +521,27 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let (v_hat, y_hat) = if self.config.channels.velocity {
             let (va, vb) = self.v.as_slices();
             let v_hat = taps.apply(0, va, vb);
-            // The velocity offset shows as mean(v) − mean(dx/dt).
-            let from_x = taps.apply(1, xa, xb);
-            self.dv_sum += v_hat - from_x;
+            // The velocity offset shows as mean(v) − mean(dx/dt). The sum of dx/dt over the
+            // rows of a segment (between gaps) telescopes: by the midpoint rule,
+            // h·Σ_{r=1..R} x'(t_r) = x̂(t_R + h/2) − x̂(t_1 − h/2) + O(h³x‴·R), and the half
+            // steps past the ends are extrapolated by the end differences, so
+            //   Σ dx/dt ≈ (x̂_R − x̂_1)/h + ½(x̂_2 − x̂_1)/h + ½(x̂_R − x̂_(R−1))/h.
+            // That is the same estimate as a 255-tap derivative filter on every row (which
+            // it replaced) to O(h²x'') per segment, from the x̂ the row computes anyway.
+            // Each row adds v̂ minus its backward difference (keeping the sum small), the
+            // second row also the start correction; the end correction is `dv_last`.
+            let mut dv = v_hat;
+            if self.dv_rows > 0 {
+                let d = (x_hat - self.dv_prev) * self.inverse_row_period;
+                dv -= d;
+                if self.dv_rows == 1 {
+                    dv -= T::from_f64(0.5) * d;
+                }
+                self.dv_last = d;
+            }
+            self.dv_prev = x_hat;
+            self.dv_rows = self.dv_rows.saturating_add(1);
+            self.dv_sum += dv;
             self.dv_weight += T::ONE;
             (v_hat, taps.apply(1, va, vb))
         } else {
@@ -452,8 +558,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         }
         let t_centre = t_newest - (self.config.window - 1) as f64 / 2.0 * self.config.sample_period;
         let row = if self.config.smoothing {
-            let sx = self.smooth_x.push(x_hat);
-            let sv = self.smooth_v.push(v_hat);
+            // A channel whose smoothing is off needs only its ε(K) (sampled more sparsely).
+            let sx = self.smooth_x.push_with(x_hat, self.smoothing_on.0);
+            let sv = self.smooth_v.push_with(v_hat, self.smoothing_on.1);
             // Delay x'', u and t by the smoother's lag.
             let slot = (self.delay_head + self.delay_len) % DELAY;
             self.delay[slot] = (y_hat, u_hat, t_centre);
@@ -551,11 +658,31 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
 
     fn fold(&mut self, r: &Row<T>) {
         let mut theta = [T::ZERO; P];
-        let omega = self.config.omega;
-        let p = omega * r.t;
-        let tau = 2.0 * core::f64::consts::PI;
-        let phase = T::from_f64(p - tau * libm::floor(p / tau));
-        self.library.evaluate(r.x, r.v, phase, r.u, &mut theta);
+        if self.config.library.harmonics > 0 {
+            // The phasor (sin, cos) of Ωt turns by a fixed rotation from one row to the next
+            // when they are one row period apart (to 10⁻⁶ of it); after a gap, a gated row,
+            // irregular time stamps or PHASOR_RESYNC rotations it is computed from t.
+            let h = self.config.sample_period * f64::from(self.config.row_stride);
+            let consecutive = self
+                .phasor_t
+                .is_some_and(|t0| libm::fabs(r.t - t0 - h) <= 1e-6 * h);
+            if consecutive && self.phasor_age < PHASOR_RESYNC {
+                let (s, c) = self.phasor;
+                let (sr, cr) = self.rotation;
+                self.phasor = (s * cr + c * sr, c * cr - s * sr);
+                self.phasor_age += 1;
+            } else {
+                let p = self.config.omega * r.t;
+                let tau = 2.0 * core::f64::consts::PI;
+                let phase = T::from_f64(p - tau * libm::floor(p / tau));
+                self.phasor = (phase.sin(), phase.cos());
+                self.phasor_age = 0;
+            }
+            self.phasor_t = Some(r.t);
+        }
+        let (s1, c1) = self.phasor;
+        self.library
+            .evaluate_sin_cos(r.x, r.v, s1, c1, r.u, &mut theta);
         for (t, s) in theta.iter_mut().zip(self.inverse_scales.iter()) {
             *t *= *s;
         }
@@ -578,18 +705,54 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         }
     }
 
-    /// The two halves including the block in progress.
-    fn halves(&self) -> (Factor<T, P>, Factor<T, P>) {
-        let (mut a, mut b) = (self.a.clone(), self.b.clone());
+    /// The weights the two halves A and B have with the block in progress merged in.
+    fn half_weights(&self) -> (T, T) {
+        let (mut a, mut b) = (self.a.weight(), self.b.weight());
         if self.block.weight() > T::ZERO {
-            let parity = (self.counters.rows / self.block_len) % 2;
-            if parity == 0 {
-                a.merge(&self.block)
+            if (self.counters.rows / self.block_len).is_multiple_of(2) {
+                a += self.block.weight();
             } else {
-                b.merge(&self.block)
+                b += self.block.weight();
             }
         }
         (a, b)
+    }
+
+    /// Fills `w` with the screening's factors: A and B with the block in progress, their
+    /// union, all with v's origin moved by `offset_v` and x's by `c`. With `halves` false,
+    /// only the union is moved by `c` (A and B are left at x's own origin).
+    ///
+    /// The screening rebuilds them from the identifier's state for each origin it tries
+    /// instead of keeping an unshifted copy besides the shifted one: the operations are the
+    /// same, in the same order, so the factors are bit for bit those of a copy, and the
+    /// stack holds three factors and one matrix instead of seven factors and four matrices
+    /// (20 KB on the M4F with P = 16). The cost is a merge and up to five transforms per
+    /// origin, about 2 % of a sweep.
+    fn prepare(&self, offset_v: T, c: T, halves: bool, w: &mut Work<T, P>) {
+        w.a.copy_from(&self.a);
+        w.b.copy_from(&self.b);
+        if self.block.weight() > T::ZERO {
+            if (self.counters.rows / self.block_len).is_multiple_of(2) {
+                w.a.merge(&self.block)
+            } else {
+                w.b.merge(&self.block)
+            }
+        }
+        if offset_v != T::ZERO {
+            self.shift_into(T::ZERO, offset_v, &mut w.m);
+            w.a.transform(&w.m);
+            w.b.transform(&w.m);
+        }
+        w.all.copy_from(&w.a);
+        w.all.merge(&w.b);
+        if c != T::ZERO {
+            self.shift_into(c, T::ZERO, &mut w.m);
+            if halves {
+                w.a.transform(&w.m);
+                w.b.transform(&w.m);
+            }
+            w.all.transform(&w.m);
+        }
     }
 
     /// Runs a screening now (it also runs by itself every `screening_period` samples).
@@ -601,8 +764,8 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     pub fn screen(&mut self) -> bool {
         let n = self.library.len();
         let enough = T::from_usize(2 * n);
-        let (mut a, mut b) = self.halves();
-        if a.weight() < enough || b.weight() < enough {
+        let (wa, wb) = self.half_weights();
+        if wa < enough || wb < enough {
             return false;
         }
         self.counters.screenings += 1;
@@ -613,21 +776,17 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         // The velocity offset: move v's origin first, so that v = 0 at rest.
         let mut offset_v = T::ZERO;
         if offsets && v_closed && self.config.channels.velocity && self.dv_weight > T::ZERO {
-            offset_v = self.dv_sum / self.dv_weight;
-            let m = self.shift(T::ZERO, offset_v);
-            a.transform(&m);
-            b.transform(&m);
+            offset_v = self.velocity_offset();
         }
-        let mut all = a.clone();
-        all.merge(&b);
-        // Candidate origins for x: the equilibria of the unforced dense model near the data.
+        let mut w = Work::new(n);
+        self.prepare(offset_v, T::ZERO, false, &mut w);
         // Candidate origins: the recording's own, and the equilibria of the unforced dense
         // model near the data. The sparsest selected model decides; among equally sparse ones
         // the least held-out error (a noisy constant term can misplace an equilibrium).
         let mut candidates: heapless::Vec<T, 6> = heapless::Vec::new();
         let _ = candidates.push(T::ZERO);
         if offsets && x_closed {
-            self.equilibria(&all, &mut candidates);
+            self.equilibria(&w.all, &mut w.m, &mut candidates);
         }
         let mut best: Option<(u32, T, T, screen::Sweep<T, P>)> = None;
         for &start in candidates.iter() {
@@ -635,17 +794,18 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             // poorly determined (it is nearly collinear with the even powers), the sparse
             // support's is not. Two passes move the origin to the sparse model's equilibrium.
             let mut c = start;
-            let mut result = self.sweep_at(&a, &b, &all, c, grid, parsimony);
+            let mut result = self.sweep_at(offset_v, c, &mut w, grid, parsimony);
             if offsets && x_closed && start != T::ZERO {
                 for _ in 0..2 {
                     let Some(selected) = result.solutions.get(result.selected).copied() else {
                         break;
                     };
-                    let Some(step) = self.refine_origin(&all, c, selected.support) else {
+                    let Some(step) = self.refine_origin(offset_v, c, selected.support, &mut w)
+                    else {
                         break;
                     };
                     c += step;
-                    result = self.sweep_at(&a, &b, &all, c, grid, parsimony);
+                    result = self.sweep_at(offset_v, c, &mut w, grid, parsimony);
                 }
             }
             // A sensor zero that is off by a little leaves small terms that the shift of x
@@ -671,10 +831,10 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                     else {
                         break;
                     };
-                    let Some(c2) = self.best_origin(&all, c, sparser.support) else {
+                    let Some(c2) = self.best_origin(offset_v, c, sparser.support, &mut w) else {
                         break;
                     };
-                    let trial = self.sweep_at(&a, &b, &all, c2, grid, parsimony);
+                    let trial = self.sweep_at(offset_v, c2, &mut w, grid, parsimony);
                     match trial.solutions.get(trial.selected) {
                         // Only a removal counts: the shift may take out the terms it
                         // created, never trade one term for another.
@@ -758,36 +918,27 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         true
     }
 
-    /// The sweep with the x origin moved by `c`.
+    /// The sweep with the x origin moved by `c` (and v's by `offset_v`).
     fn sweep_at(
         &self,
-        a: &Factor<T, P>,
-        b: &Factor<T, P>,
-        all: &Factor<T, P>,
+        offset_v: T,
         c: T,
+        w: &mut Work<T, P>,
         grid: usize,
         parsimony: T,
     ) -> screen::Sweep<T, P> {
-        if c == T::ZERO {
-            return screen::sweep(a, b, all, grid, parsimony);
-        }
-        let m = self.shift(c, T::ZERO);
-        let (mut a2, mut b2, mut all2) = (a.clone(), b.clone(), all.clone());
-        a2.transform(&m);
-        b2.transform(&m);
-        all2.transform(&m);
-        screen::sweep(&a2, &b2, &all2, grid, parsimony)
+        self.prepare(offset_v, c, true, w);
+        // The column map is spent once the factors are moved: it is the solves' scratch.
+        screen::sweep(&w.a, &w.b, &w.all, &mut w.m, grid, parsimony)
     }
 
     /// With the origin at `c`: the equilibrium, nearest 0, of the model on `support` and the
     /// columns an x-shift of it needs. Returns the step to it, if Newton's method converges.
-    fn refine_origin(&self, all: &Factor<T, P>, c: T, support: u32) -> Option<T> {
-        let m = self.shift(c, T::ZERO);
-        let mut shifted = all.clone();
-        shifted.transform(&m);
+    fn refine_origin(&self, offset_v: T, c: T, support: u32, w: &mut Work<T, P>) -> Option<T> {
+        self.prepare(offset_v, c, false, w);
         let closure = self.library.x_shift_closure(support);
         let mut xi = [T::ZERO; P];
-        shifted.solve(closure, &mut xi);
+        w.all.solve_in(closure, &mut xi, &mut w.m);
         let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
         for (j, term) in self.library.terms().iter().enumerate() {
             let value = (xi[j] * self.y_scale / self.scales[j]).to_f64();
@@ -820,10 +971,21 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         Some(T::from_f64(x))
     }
 
+    /// Residual energy of A and B together, at x origin `at`, of the least-squares model on
+    /// `support`; `w.all` holds the union at x's own origin, `w.a` is the scratch.
+    fn origin_rss(&self, at: T, support: u32, w: &mut Work<T, P>) -> T {
+        self.shift_into(at, T::ZERO, &mut w.m);
+        w.a.copy_from(&w.all);
+        w.a.transform(&w.m);
+        let mut xi = [T::ZERO; P];
+        w.a.solve_in(support, &mut xi, &mut w.m);
+        w.a.error(&xi)
+    }
+
     /// The origin near `c` at which the model on `support` fits best (least residual energy
     /// of A and B together), by golden-section search over ±5 % of the data's span. `None`
     /// when the support is closed under x-shifts (the residual does not depend on the origin).
-    fn best_origin(&self, all: &Factor<T, P>, c: T, support: u32) -> Option<T> {
+    fn best_origin(&self, offset_v: T, c: T, support: u32, w: &mut Work<T, P>) -> Option<T> {
         if self.library.x_shift_closure(support) == support {
             return None;
         }
@@ -831,32 +993,28 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         if !(span > T::ZERO) {
             return None;
         }
-        let rss = |at: T| {
-            let m = self.shift(at, T::ZERO);
-            let mut shifted = all.clone();
-            shifted.transform(&m);
-            let mut xi = [T::ZERO; P];
-            shifted.solve(support, &mut xi);
-            shifted.error(&xi)
-        };
+        self.prepare(offset_v, T::ZERO, false, w);
         let g = T::from_f64(0.618_033_988_749_894_8);
         let half = span * T::from_f64(0.05);
         let (mut lo, mut hi) = (c - half, c + half);
         let (mut p, mut q) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        let (mut fp, mut fq) = (rss(p), rss(q));
-        for _ in 0..40 {
+        let (mut fp, mut fq) = (
+            self.origin_rss(p, support, w),
+            self.origin_rss(q, support, w),
+        );
+        for _ in 0..golden_steps::<T>() {
             if fp < fq {
                 hi = q;
                 q = p;
                 fq = fp;
                 p = hi - g * (hi - lo);
-                fp = rss(p);
+                fp = self.origin_rss(p, support, w);
             } else {
                 lo = p;
                 p = q;
                 fp = fq;
                 q = lo + g * (hi - lo);
-                fq = rss(q);
+                fq = self.origin_rss(q, support, w);
             }
         }
         let best = (lo + hi) * T::from_f64(0.5);
@@ -869,29 +1027,39 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         Some(best)
     }
 
-    /// The column map (scaled) that moves the origin of x and v by (cx, cv): the new columns
-    /// are θ(x − cx, v − cv) = M(−c) θ(x, v).
-    fn shift(&self, cx: T, cv: T) -> [[T; P]; P] {
+    /// Writes the column map (scaled) that moves the origin of x and v by (cx, cv) into `b`:
+    /// the new columns are θ(x − cx, v − cv) = M(−c) θ(x, v), B = diag(d) Mᵀ diag(d)⁻¹.
+    /// Built in place (M, then transposed and scaled) so that no second matrix is needed.
+    fn shift_into(&self, cx: T, cv: T, b: &mut [[T; P]; P]) {
         let n = self.library.len();
-        let mut m = [[T::ZERO; P]; P];
-        self.library.shift_matrix(-cx, -cv, &mut m);
-        let mut b = [[T::ZERO; P]; P];
+        self.library.shift_matrix(-cx, -cv, b);
+        for k in 0..n {
+            for j in 0..k {
+                let t = b[k][j];
+                b[k][j] = b[j][k];
+                b[j][k] = t;
+            }
+        }
         for k in 0..n {
             for j in 0..n {
                 // Scaled: B[k][j] = M[j][k] d_k / d_j (columns θ/d).
-                b[k][j] = m[j][k] * self.scales[k] * self.inverse_scales[j];
+                b[k][j] = b[k][j] * self.scales[k] * self.inverse_scales[j];
             }
         }
-        b
     }
 
     /// Real roots of the dense model's unforced restoring force p(x) = Σ ξ_(a,0) x^a (v = 0,
     /// no excitation) within the data's range widened by half of it, nearest the middle first.
-    fn equilibria(&self, all: &Factor<T, P>, out: &mut heapless::Vec<T, 6>) {
+    fn equilibria(
+        &self,
+        all: &Factor<T, P>,
+        work: &mut [[T; P]; P],
+        out: &mut heapless::Vec<T, 6>,
+    ) {
         let n = self.library.len();
         let full: u32 = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
         let mut xi = [T::ZERO; P];
-        all.solve(full, &mut xi);
+        all.solve_in(full, &mut xi, work);
         let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
         let mut any = false;
         for (j, term) in self.library.terms().iter().enumerate() {

@@ -318,6 +318,17 @@ impl<const P: usize> Library<P> {
     /// to [0, 2π). Powers are built by repeated multiplication, harmonics by the Chebyshev
     /// recurrence, so a row costs one sin and one cos whatever H is.
     pub fn evaluate<T: Real>(&self, x: T, v: T, phase: T, u: T, row: &mut [T]) {
+        let (s1, c1) = if self.config.harmonics > 0 {
+            (phase.sin(), phase.cos())
+        } else {
+            (T::ZERO, T::ONE)
+        };
+        self.evaluate_sin_cos(x, v, s1, c1, u, row);
+    }
+
+    /// [`Library::evaluate`] with the phase given as (sin φ, cos φ): for a caller that
+    /// advances the phase by rotation instead of calling sin and cos for every row.
+    pub fn evaluate_sin_cos<T: Real>(&self, x: T, v: T, s1: T, c1: T, u: T, row: &mut [T]) {
         let order = usize::from(self.config.poly_order);
         let mut xp = [T::ONE; MAX_POLY_ORDER as usize + 1];
         let mut vp = [T::ONE; MAX_POLY_ORDER as usize + 1];
@@ -329,7 +340,6 @@ impl<const P: usize> Library<P> {
         let mut sines = [T::ZERO; MAX_HARMONICS as usize + 1];
         let mut cosines = [T::ONE; MAX_HARMONICS as usize + 1];
         if harmonics > 0 {
-            let (s1, c1) = (phase.sin(), phase.cos());
             sines[1] = s1;
             cosines[1] = c1;
             let two_c = c1 + c1;

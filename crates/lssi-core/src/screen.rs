@@ -50,6 +50,7 @@ fn scaled<T: Real, const P: usize>(
 /// Sequential thresholding at `threshold`, starting from the columns in `start`.
 fn stlsq<T: Real, const P: usize>(
     all: &Factor<T, P>,
+    work: &mut [[T; P]; P],
     norms: &[T; P],
     y_norm: T,
     start: u32,
@@ -60,7 +61,7 @@ fn stlsq<T: Real, const P: usize>(
     let mut xi = [T::ZERO; P];
     let mut magnitude = [T::ZERO; P];
     for _ in 0..MAX_ITERATIONS {
-        support = all.solve(support, &mut xi);
+        support = all.solve_in(support, &mut xi, work);
         scaled(&xi, norms, y_norm, n, &mut magnitude);
         let mut next = 0u32;
         for j in 0..n {
@@ -77,7 +78,12 @@ fn stlsq<T: Real, const P: usize>(
 }
 
 /// Held-out mean error of a support: A's fit tested on B and B's on A.
-fn held_out<T: Real, const P: usize>(a: &Factor<T, P>, b: &Factor<T, P>, support: u32) -> T {
+fn held_out<T: Real, const P: usize>(
+    a: &Factor<T, P>,
+    b: &Factor<T, P>,
+    support: u32,
+    work: &mut [[T; P]; P],
+) -> T {
     let mut xi = [T::ZERO; P];
     let mut total = T::ZERO;
     let mut parts = T::ZERO;
@@ -85,7 +91,7 @@ fn held_out<T: Real, const P: usize>(a: &Factor<T, P>, b: &Factor<T, P>, support
         if test.weight() <= T::ZERO {
             continue;
         }
-        fit.solve(support, &mut xi);
+        fit.solve_in(support, &mut xi, work);
         total += test.error(&xi) / test.weight();
         parts += T::ONE;
     }
@@ -97,11 +103,13 @@ fn held_out<T: Real, const P: usize>(a: &Factor<T, P>, b: &Factor<T, P>, support
 }
 
 /// Runs the sweep and MES over factors `a`, `b` and their union `all` (same columns).
-/// `grid` is the number of logarithmic thresholds, `parsimony` the near-tie tolerance.
+/// `grid` is the number of logarithmic thresholds, `parsimony` the near-tie tolerance;
+/// `work` is scratch for the solves.
 pub(crate) fn sweep<T: Real, const P: usize>(
     a: &Factor<T, P>,
     b: &Factor<T, P>,
     all: &Factor<T, P>,
+    work: &mut [[T; P]; P],
     grid: usize,
     parsimony: T,
 ) -> Sweep<T, P> {
@@ -111,7 +119,7 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     all.column_norms(&mut norms);
     let y_norm = all.target_norm();
     let mut dense = [T::ZERO; P];
-    let dense_support = all.solve(full, &mut dense);
+    let dense_support = all.solve_in(full, &mut dense, work);
     let mut magnitude = [T::ZERO; P];
     scaled(&dense, &norms, y_norm, n, &mut magnitude);
 
@@ -145,11 +153,11 @@ pub(crate) fn sweep<T: Real, const P: usize>(
 
     let mut solutions: heapless::Vec<Solution<T>, MAX_SOLUTIONS> = heapless::Vec::new();
     for &threshold in thresholds.iter() {
-        let support = stlsq(all, &norms, y_norm, dense_support, threshold);
+        let support = stlsq(all, work, &norms, y_norm, dense_support, threshold);
         if support == 0 || solutions.iter().any(|s| s.support == support) {
             continue;
         }
-        let mean_error = held_out(a, b, support);
+        let mean_error = held_out(a, b, support, work);
         if solutions
             .push(Solution {
                 threshold,
@@ -191,7 +199,7 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     }
     let mut coefficients = [T::ZERO; P];
     if let Some(s) = solutions.get(selected) {
-        all.solve(s.support, &mut coefficients);
+        all.solve_in(s.support, &mut coefficients, work);
     }
     Sweep {
         solutions,

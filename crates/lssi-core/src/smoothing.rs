@@ -29,8 +29,16 @@ pub const SPAN: usize = 6;
 const RING: usize = 2 * SPAN + 3;
 /// Regularisation r of Z + r·tr(Z)·I.
 const REGULARISATION: f64 = 0.1;
-/// ε(K) is evaluated on one row in this many (the cost is spread out).
+/// ε(K) is evaluated on one row in this many while the smoothing is applied (the cost is
+/// spread out).
 const EVALUATE_EVERY: u32 = 4;
+/// ... and on one row in this many while it is not ([`KnnSmoother::push_with`] with
+/// `apply` false): ε(K) then only feeds the decision to switch the smoothing on and the
+/// choice of K, for which a mean over a quarter of the rows is as good (the screening
+/// period holds ~2 500 rows, so ~150 evaluations per channel and period), and the rows in
+/// between cost a ring-buffer write instead of a neighbour search and a Cholesky
+/// factorisation.
+const EVALUATE_EVERY_IDLE: u32 = 16;
 
 /// A streaming k-neighbour smoother for one channel.
 #[derive(Clone, Debug)]
@@ -129,6 +137,14 @@ impl<T: Real> KnnSmoother<T> {
     /// Pushes the next row's value; once the history is full, returns the smoothed value of
     /// the row [`Self::LAG`] rows back.
     pub fn push(&mut self, value: T) -> Option<T> {
+        self.push_with(value, true)
+    }
+
+    /// [`Self::push`], when `apply` is true. When it is false, the caller will not use the
+    /// smoothed value: ε(K) is still accumulated, on one row in 16 instead of one in 4, and
+    /// the other rows only go into the history; what comes back is then the unsmoothed
+    /// [`Self::centre`] on the rows not evaluated.
+    pub fn push_with(&mut self, value: T, apply: bool) -> Option<T> {
         self.ring[(self.head + self.filled) % RING] = value;
         if self.filled < RING {
             self.filled += 1;
@@ -140,6 +156,14 @@ impl<T: Real> KnnSmoother<T> {
         }
         let centre = SPAN + 1;
         let own = self.at(centre);
+        if !apply {
+            self.rows = self.rows.wrapping_add(1);
+            if !self.rows.is_multiple_of(EVALUATE_EVERY_IDLE) {
+                return Some(own);
+            }
+            // Undo the count: the evaluation below counts the row itself.
+            self.rows = self.rows.wrapping_sub(1);
+        }
         let (cl, cr) = (self.at(centre - 1), self.at(centre + 1));
         // Candidates: rows 1..=2·SPAN+1 except the centre, nearest context first.
         let mut order = [0usize; 2 * SPAN];
@@ -163,7 +187,7 @@ impl<T: Real> KnnSmoother<T> {
             count += 1;
         }
         self.rows = self.rows.wrapping_add(1);
-        let evaluate = self.rows.is_multiple_of(EVALUATE_EVERY);
+        let evaluate = !apply || self.rows.is_multiple_of(EVALUATE_EVERY);
         let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
         // Local Gram matrix Z (eq. 4) of the k_used nearest contexts.
         let mut diff = [[T::ZERO; 2]; MAX_NEIGHBOURS];

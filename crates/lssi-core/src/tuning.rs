@@ -14,6 +14,33 @@
 //!   independent windows of the n samples it remembers, while the bias does not average out,
 //!
 //! and picks the (N, p) with the least bias² + σ²‖h_p‖²·N/n.
+//!
+//! # The period cap
+//!
+//! The disagreement measures the bias only while the reference degree p + 2 fit follows the
+//! signal across the window. Once a window spans more than a period, both fits are low-pass
+//! filters whose stop band holds the signal: both return nearly 0, they agree, the estimated
+//! bias is 0 and the longest window wins, although it has removed the signal it should
+//! differentiate. On the measured records this is what happened (the FrID beam at 24 samples
+//! per period and Silverbox at about 10 got the longest window, 1023 samples, degree 3); the
+//! fourth-difference σ² made it worse there, as signal content near Nyquist inflates it and
+//! the bias is over-subtracted, but an exact σ² would not have saved a window of 40 periods.
+//!
+//! So the candidates are capped at the signal's mean period T: N ≤ T, or the shortest
+//! candidate alone when even that is longer. Over one period a polynomial of degree ≥ 5 (the
+//! reference) follows a sinusoid to about 1 % (the Chebyshev bound π⁷/(7!·2⁶)), so within the
+//! cap the disagreement is a faithful bias estimate again. T is measured without a transform
+//! (this runs in `no_std`): the mean-removed source is passed through a Schmitt trigger with
+//! thresholds ±3σ, clamped to [¼ RMS, ½ RMS], and T = 2 · samples / crossings, the
+//! zero-crossing (Rice) rate, which for a broadband signal is its RMS frequency, the
+//! conservative side for a derivative. The hysteresis keeps noise from chattering at the
+//! crossings; the upper clamp keeps a σ² inflated by content near Nyquist (3 samples per
+//! period make it as large as the signal) from lifting the thresholds above the signal. The
+//! price: a source whose white noise is above about a third of its RMS chatters through
+//! ±½ RMS and gets a short cap, a record no window makes identifiable anyway. A source
+//! slower than two periods over the stretch gets no cap. On the synthetic recordings the cap does not bind (eq. 17: T ≈ 1600 samples of v
+//! against the chosen 191; the bistable harvester: T ≈ 590 samples of x against 95), so their
+//! choices are unchanged.
 
 use crate::derivative::Taps;
 use crate::real::Real;
@@ -38,32 +65,111 @@ pub struct WindowChoice {
     pub bias: f64,
     /// RMS of the target estimate (for scale).
     pub target_rms: f64,
+    /// Mean period of the source in samples ([`mean_period`]), which caps the window; `None`
+    /// when the source showed too few crossings to tell (no cap).
+    pub period: Option<f64>,
 }
 
 /// Chooses (N, p) for a recording: `source` is x (x only) or the measured v, `order` the
 /// derivative of `source` that gives x'' (2 or 1), `n_memory` the samples the fit will
 /// average over (the record's length, or the memory time constant over the period).
-/// Returns `None` when the stretch is shorter than the shortest window. `W` caps N.
+/// Returns `None` when the stretch is shorter than the shortest window. `W` caps N, and so
+/// does the source's mean period (see the module docs).
 pub fn choose_window<T: Real, const W: usize>(
     source: &[T],
     order: usize,
     sample_period: f64,
     n_memory: usize,
 ) -> Option<WindowChoice> {
-    let n = source.len();
-    if n < WINDOWS[0] + 4 {
+    if source.len() < WINDOWS[0] + 4 {
         return None;
     }
-    // σ² from fourth differences.
+    let sigma2 = noise_variance(source);
+    let period = mean_period(source, libm::sqrt(sigma2));
+    // The shortest candidate stays allowed whatever the period.
+    let cap = period.map_or(W, |t| (t as usize).max(WINDOWS[0]).min(W));
+    let mut choice = choose_capped::<T, W>(source, order, sample_period, n_memory, sigma2, cap)?;
+    choice.period = period;
+    Some(choice)
+}
+
+/// White-noise variance from fourth differences: E[(Δ⁴s)²] = 70σ² when the signal is smooth
+/// at the sample rate (an over-estimate when it is not).
+fn noise_variance<T: Real>(source: &[T]) -> f64 {
+    let n = source.len();
+    if n < 5 {
+        return 0.0;
+    }
     let mut d4 = 0.0;
     for w in source.windows(5) {
         let d = w[0].to_f64() - 4.0 * w[1].to_f64() + 6.0 * w[2].to_f64() - 4.0 * w[3].to_f64()
             + w[4].to_f64();
         d4 += d * d;
     }
-    let sigma2 = d4 / (n - 4) as f64 / 70.0;
+    d4 / (n - 4) as f64 / 70.0
+}
+
+/// Mean period of `source` in samples, from its zero-crossing rate: the mean-removed signal
+/// through a Schmitt trigger with thresholds ±3·`noise`, clamped to [RMS/4, RMS/2],
+/// T = 2 · samples / crossings. `None` with fewer than 4 crossings (under two periods, or a source whose noise
+/// hides it).
+pub fn mean_period<T: Real>(source: &[T], noise: f64) -> Option<f64> {
+    let n = source.len();
+    if n < 2 {
+        return None;
+    }
+    let mean = source.iter().map(|s| s.to_f64()).sum::<f64>() / n as f64;
+    let power = source
+        .iter()
+        .map(|s| {
+            let d = s.to_f64() - mean;
+            d * d
+        })
+        .sum::<f64>()
+        / n as f64;
+    let rms = libm::sqrt(power);
+    let threshold = (3.0 * noise).max(0.25 * rms).min(0.5 * rms);
+    if !(threshold > 0.0) || !threshold.is_finite() {
+        return None;
+    }
+    let (mut state, mut crossings) = (0i8, 0usize);
+    for s in source {
+        let d = s.to_f64() - mean;
+        let next = if d > threshold {
+            1
+        } else if d < -threshold {
+            -1
+        } else {
+            state
+        };
+        if next != state {
+            if state != 0 {
+                crossings += 1;
+            }
+            state = next;
+        }
+    }
+    (crossings >= 4).then(|| 2.0 * n as f64 / crossings as f64)
+}
+
+/// The rule on the candidates of at most `cap` samples, σ² given.
+fn choose_capped<T: Real, const W: usize>(
+    source: &[T],
+    order: usize,
+    sample_period: f64,
+    n_memory: usize,
+    sigma2: f64,
+    cap: usize,
+) -> Option<WindowChoice> {
+    let n = source.len();
+    if n < WINDOWS[0] + 4 {
+        return None;
+    }
     let mut best: Option<(f64, WindowChoice)> = None;
-    for &len in WINDOWS.iter().filter(|&&l| l <= W && l + 4 <= n) {
+    for &len in WINDOWS
+        .iter()
+        .filter(|&&l| l <= W && l <= cap && l + 4 <= n)
+    {
         for &p in DEGREES.iter() {
             if len < p + 2 + 3 {
                 continue;
@@ -104,6 +210,7 @@ pub fn choose_window<T: Real, const W: usize>(
                 noise: libm::sqrt(sigma2),
                 bias: libm::sqrt(bias2),
                 target_rms: libm::sqrt(power / count),
+                period: None,
             };
             if best.is_none_or(|(c, _)| cost < c) {
                 best = Some((cost, choice));
@@ -111,4 +218,79 @@ pub fn choose_window<T: Real, const W: usize>(
         }
     }
     best.map(|(_, c)| c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const W: usize = 1023;
+
+    /// `a·sin(2πk/period)` plus uniform white noise of standard deviation `noise`.
+    fn noisy_sine(n: usize, period: f64, noise: f64) -> Vec<f64> {
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        (0..n)
+            .map(|k| {
+                state = state
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                let uniform = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                libm::sin(2.0 * core::f64::consts::PI * k as f64 / period)
+                    + noise * 12f64.sqrt() * uniform
+            })
+            .collect()
+    }
+
+    #[test]
+    fn mean_period_of_a_noisy_sinusoid() {
+        let s = noisy_sine(20_000, 40.0, 0.01);
+        let t = mean_period(&s, 0.01).unwrap();
+        assert!((t - 40.0).abs() < 0.5, "period {t}");
+        // Too slow to show two periods: no cap.
+        assert_eq!(mean_period(&noisy_sine(2_000, 5_000.0, 0.01), 0.01), None);
+    }
+
+    #[test]
+    fn the_window_is_no_longer_than_a_period() {
+        let s = noisy_sine(20_000, 40.0, 0.01);
+        let dt = 1e-3;
+        let sigma2 = noise_variance(&s);
+        // Without the cap the longest windows win: both fits stop the signal and agree.
+        let uncapped = choose_capped::<f64, W>(&s, 2, dt, s.len(), sigma2, W).unwrap();
+        assert!(uncapped.window > 40, "uncapped {uncapped:?}");
+        let choice = choose_window::<f64, W>(&s, 2, dt, s.len()).unwrap();
+        assert!(choice.window <= 40, "{choice:?}");
+        assert!((choice.period.unwrap() - 40.0).abs() < 0.5);
+        // The estimate still follows the signal: x'' of sin has RMS ω²/√2.
+        let expected = (2.0 * core::f64::consts::PI / (40.0 * dt)).powi(2) / 2f64.sqrt();
+        assert!(
+            (choice.target_rms / expected - 1.0).abs() < 0.05,
+            "{choice:?}"
+        );
+    }
+
+    #[test]
+    fn three_samples_per_period_get_the_shortest_window() {
+        let s = noisy_sine(20_000, 3.0, 0.01);
+        let choice = choose_window::<f64, W>(&s, 2, 1e-3, s.len()).unwrap();
+        assert_eq!(choice.window, WINDOWS[0], "{choice:?}");
+    }
+
+    #[test]
+    fn a_slow_signal_is_not_capped() {
+        // 2 500 samples per period: the cap (2 500) is above every candidate, so the choice is
+        // the one without it.
+        let s = noisy_sine(50_000, 2_500.0, 1e-3);
+        let choice = choose_window::<f64, W>(&s, 2, 1e-3, s.len()).unwrap();
+        let sigma2 = noise_variance(&s);
+        let mut uncapped = choose_capped::<f64, W>(&s, 2, 1e-3, s.len(), sigma2, W).unwrap();
+        uncapped.period = choice.period;
+        assert_eq!(choice, uncapped);
+        assert!(choice.period.unwrap() > 2_400.0);
+    }
+
+    #[test]
+    fn too_short_a_stretch_has_no_choice() {
+        assert_eq!(choose_window::<f64, W>(&[0.0; 18], 2, 1e-3, 18), None);
+    }
 }

@@ -344,7 +344,7 @@ fn stream(_meter: &mut Meter) {
 #[cfg(all(feature = "bench-profile", not(feature = "bench-baseline")))]
 fn profile(meter: &mut Meter) {
     use lssi_core::Library;
-    use lssi_core::derivative::Taps;
+    use lssi_core::derivative::{FoldedTaps, Taps};
     use lssi_core::factor::Factor;
     use lssi_core::smoothing::KnnSmoother;
 
@@ -361,6 +361,8 @@ fn profile(meter: &mut Meter) {
         defmt::error!("bench-id: taps refused");
         return;
     };
+    // The identifier keeps its taps folded by symmetry.
+    let taps = FoldedTaps::fold(&taps);
     let Ok(library) = Library::<TERMS>::new(&config.library) else {
         defmt::error!("bench-id: library refused");
         return;
@@ -388,6 +390,9 @@ fn profile(meter: &mut Meter) {
     );
     let mut smoothed = 0u32;
     let stride = usize::from(config.row_stride);
+    let step = OMEGA * DT * stride as f64;
+    let rotation = (libm::sin(step) as f32, libm::cos(step) as f32);
+    let mut phasor = (0.0f32, 1.0f32);
     for r in 0..PROFILE_ROWS {
         // Slide the window by a row's stride (not timed).
         xs.copy_within(stride..window, 0);
@@ -398,20 +403,26 @@ fn profile(meter: &mut Meter) {
             vs[k] = s.v.unwrap_or(0.0);
         }
         let (x, v) = (black_box(&xs[..window]), black_box(&vs[..window]));
-        // The four FIR filters of a row with a measured velocity: x, x', dx/dt, x''.
+        // The three folded FIR filters of a row with a measured velocity: x, x', x'' (the
+        // velocity offset's dx/dt is a difference of successive x̂ now).
         let ((x_hat, v_hat, y_hat), cost) = meter.measure(|| {
             let x_hat = taps.apply(0, x, &[]);
             let v_hat = taps.apply(0, v, &[]);
-            let from_x = taps.apply(1, x, &[]);
-            black_box(v_hat - from_x);
             (x_hat, v_hat, taps.apply(1, v, &[]))
         });
         fir.add(cost);
-        let ((sx, sv), cost) = meter.measure(|| (smooth_x.push(x_hat), smooth_v.push(v_hat)));
+        // As in the identifier with the smoothing off (its state on this signal): ε(K) on
+        // one row in 16, the others only buffered.
+        let ((sx, sv), cost) = meter.measure(|| {
+            (
+                smooth_x.push_with(x_hat, false),
+                smooth_v.push_with(v_hat, false),
+            )
+        });
         if sx.is_some() {
             smoothed += 1;
-            // The smoothers try every K on every 4th row.
-            if smoothed.is_multiple_of(4) {
+            // The smoothers try every K on every 16th row.
+            if smoothed.is_multiple_of(16) {
                 knn_eval.add(cost);
             } else {
                 knn_plain.add(cost);
@@ -422,14 +433,14 @@ fn profile(meter: &mut Meter) {
             smooth_v.choose_k(0.5);
         }
         let (xr, vr) = (sx.unwrap_or(x_hat), sv.unwrap_or(v_hat));
-        let t = f64::from(r) * DT * stride as f64;
-        let phase = {
-            let tau = 2.0 * core::f64::consts::PI;
-            let p = OMEGA * t;
-            (p - tau * libm::floor(p / tau)) as f32
-        };
+        // The identifier's phasor: one rotation per row (its exact re-sync every 64 rows is
+        // left out here).
         let mut theta = [0.0f32; TERMS];
-        let ((), cost) = meter.measure(|| library.evaluate(xr, vr, phase, 0.0, &mut theta));
+        let ((), cost) = meter.measure(|| {
+            let (s, c) = phasor;
+            phasor = (s * rotation.1 + c * rotation.0, c * rotation.1 - s * rotation.0);
+            library.evaluate_sin_cos(xr, vr, phasor.0, phasor.1, 0.0, &mut theta)
+        });
         lib.add(cost);
         let ((), cost) = meter.measure(|| block.update(&theta, y_hat, 1.0));
         givens.add(cost);
