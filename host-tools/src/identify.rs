@@ -486,6 +486,12 @@ fn number(v: f64) -> String {
     }
 }
 
+/// K of one channel: 0 means its k-neighbour smoothing is not applied (off by flag, or
+/// decided off because it would bend the signal more than it removes noise).
+fn k_text(k: u8) -> String {
+    if k == 0 { "off".into() } else { k.to_string() }
+}
+
 /// The human-readable report.
 pub fn render(report: &Report) -> String {
     let mut out = String::new();
@@ -514,8 +520,8 @@ pub fn render(report: &Report) -> String {
     out.push('\n');
     out.push_str(&format!(
         "K: x = {}, v = {}   window: {} samples, degree {}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",
-        report.k.x,
-        report.k.v,
+        k_text(report.k.x),
+        k_text(report.k.v),
         report.window,
         report.degree,
         number(report.omega),

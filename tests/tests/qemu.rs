@@ -376,3 +376,53 @@ fn bundled_recording_through_qemu_firmware_equals_host_f32() {
     eprintln!("device model = host model: {}", describe(&device));
     drop(qemu);
 }
+
+/// The user's command: `lssi replay data/paper-eq17.csv --qemu --json` (its code, in this
+/// process: QEMU on a pty, the link through `serialport`, defmt decoded) reports exactly the
+/// report of `lssi identify --f32` on the same file.
+#[test]
+fn lssi_replay_qemu_reports_what_identify_f32_reports() {
+    use lssi_host::commands::identify::{Family, identify_recording};
+    use lssi_host::commands::replay::{ReplayArgs, replay};
+
+    let elf = firmware_elf();
+    if let Some(reason) = missing_prerequisite(&elf) {
+        if std::env::var("LSSI_REQUIRE_QEMU").is_ok_and(|v| v == "1") {
+            panic!("LSSI_REQUIRE_QEMU=1 but {reason}");
+        }
+        eprintln!("skipped: {reason}");
+        return;
+    }
+    let file = repository().join("data/paper-eq17.csv");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let args = ReplayArgs {
+        file: file.clone(),
+        port: None,
+        baud: 921_600,
+        flip_rate: 0.0,
+        drop_rate: 0.0,
+        burst: 0,
+        seed: 1,
+        qemu: true,
+        firmware: Some(elf.clone()),
+        elf: Some(elf),
+        log: Some(dir.path().join("qemu.tlm")),
+        window: 8,
+        batch: 24,
+        omega: None,
+        harmonics: 1,
+        poly_order: 3,
+        family: Family::All,
+        no_smoothing: false,
+        memory: None,
+        json: true,
+        columns: ColumnNames::default(),
+    };
+    let recording = Recording::read(&file, &ColumnNames::default()).expect("bundled recording");
+    let expected =
+        identify_recording(&recording, &args.options().expect("options")).expect("identify --f32");
+    let replayed = replay(&args).expect("lssi replay --qemu");
+    assert_eq!(replayed.report, expected);
+    assert_eq!(replayed.link.samples_lost, 0);
+    assert_eq!(replayed.link.samples_acked, recording.len() as u64);
+}

@@ -334,8 +334,9 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
 /// depends only on its place k in the window, never on where the ring buffer happens to
 /// wrap, so the result is the same for every capacity W (host and device agree bit for bit
 /// whatever their W). The mirror sample is multiplied by `sign` = ±1 (exact), which keeps
-/// one loop for both parities.
-#[inline(always)]
+/// one loop for both parities. Not inlined: its two calls per filter would otherwise be
+/// six copies of the unrolled loop in the identifier's row (2 KB of flash).
+#[inline(never)]
 fn fold_sum<T: Real>(h: &[T], l: &[T], r: &[T], sign: T, k0: usize, acc: &mut [T; 4]) {
     let len = h.len().min(l.len()).min(r.len());
     let (h, l, r) = (&h[..len], &l[..len], &r[r.len() - len..]);

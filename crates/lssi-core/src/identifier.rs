@@ -67,6 +67,14 @@ fn golden_steps<T: Real>() -> usize {
     if T::EPSILON.to_f64() > 1e-10 { 20 } else { 40 }
 }
 
+/// The two halves A and B of the data, or, until the column scales are known, the warm-up
+/// rows. The halves are empty while rows wait in the warm-up buffer, so the two share their
+/// memory (the buffer's 1.5 KB of RAM on the M4F with P = 16).
+enum Store<T, const P: usize> {
+    Warmup(heapless::Vec<Row<T>, WARMUP_ROWS>),
+    Halves(Factor<T, P>, Factor<T, P>),
+}
+
 /// The screening's working factors: A and B (with the block in progress), their union, and
 /// one column map. One set, filled anew for each origin tried (see `Identifier::prepare`).
 struct Work<T, const P: usize> {
@@ -196,9 +204,7 @@ pub struct Identifier<T: Real, const W: usize, const P: usize> {
     inverse_scales: [T; P],
     scales: [T; P],
     y_scale: T,
-    warmup: heapless::Vec<Row<T>, WARMUP_ROWS>,
-    a: Factor<T, P>,
-    b: Factor<T, P>,
+    store: Store<T, P>,
     block: Factor<T, P>,
     block_len: u64,
     sqrt_lambda: T,
@@ -287,9 +293,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             inverse_scales: [T::ONE; P],
             scales: [T::ONE; P],
             y_scale: T::ONE,
-            warmup: heapless::Vec::new(),
-            a: Factor::new(n),
-            b: Factor::new(n),
+            store: Store::Warmup(heapless::Vec::new()),
             block: Factor::new(n),
             block_len,
             sqrt_lambda: T::from_f64(libm::sqrt(lambda)),
@@ -309,7 +313,10 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             phasor: (T::ZERO, T::ONE),
             phasor_t: None,
             phasor_age: 0,
-            rotation: (T::from_f64(libm::sin(step)), T::from_f64(libm::cos(step))),
+            // Through T's own sin/cos: in f32, sinf and cosf are linked already, libm's f64
+            // sin and cos would add 4 KB of flash (the rounding of the step to f32 turns
+            // the phasor by 10⁻⁹ rad a row at most, re-synced every PHASOR_RESYNC rows).
+            rotation: (T::from_f64(step).sin(), T::from_f64(step).cos()),
             max_abs_sure: T::from_f64(config.max_abs * (1.0 - 1e-6)),
             too_early: 0.5 * config.sample_period,
             gap_after: 1.5 * config.sample_period,
@@ -611,28 +618,45 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         // Until the column scales are known, rows wait in the warm-up buffer; then they are
         // folded in, in order, and every later row goes straight to the factors.
         if self.counters.rows == 0 {
-            if self.warmup.push(row).is_ok() && self.warmup.len() < WARMUP_ROWS {
+            if let Store::Warmup(rows) = &mut self.store
+                && rows.push(row).is_ok()
+                && rows.len() < WARMUP_ROWS
+            {
                 return;
             }
-            self.set_scales();
-            let rows = core::mem::take(&mut self.warmup);
-            for r in rows.iter() {
-                self.fold(r);
-            }
+            self.flush_warmup();
             return;
         }
         self.fold(&row);
     }
 
+    /// Ends the warm-up: sets the column scales and folds the buffered rows in, in order.
+    /// Out of line (and run once): the rows move out of the shared store onto this frame's
+    /// 1.5 KB, which would otherwise sit in `push`'s frame under every screening too.
+    #[inline(never)]
+    #[cold]
+    fn flush_warmup(&mut self) {
+        let n = self.library.len();
+        let empty = Store::Halves(Factor::new(n), Factor::new(n));
+        let rows = match core::mem::replace(&mut self.store, empty) {
+            Store::Warmup(rows) => rows,
+            Store::Halves(..) => heapless::Vec::new(),
+        };
+        self.set_scales(&rows);
+        for r in rows.iter() {
+            self.fold(r);
+        }
+    }
+
     /// Column scales from the warm-up rows: each column and x'' become O(1).
-    fn set_scales(&mut self) {
+    fn set_scales(&mut self, warmup: &[Row<T>]) {
         let mut sums = [T::ZERO; 4];
-        for r in self.warmup.iter() {
+        for r in warmup.iter() {
             for (s, v) in sums.iter_mut().zip([r.x, r.v, r.u, r.y]) {
                 *s += v * v;
             }
         }
-        let count = T::from_usize(self.warmup.len().max(1));
+        let count = T::from_usize(warmup.len().max(1));
         let rms = sums.map(|s| {
             let r = (s / count).sqrt();
             if r > T::ZERO && r.is_finite() {
@@ -694,20 +718,22 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         self.counters.rows += 1;
         if self.counters.rows.is_multiple_of(self.block_len) {
             let parity = (self.counters.rows / self.block_len) % 2;
-            let factor = if parity == 1 {
-                &mut self.a
-            } else {
-                &mut self.b
-            };
-            factor.forget(self.sqrt_lambda_blocks);
-            factor.merge(&self.block);
+            // Rows reach the block only after the warm-up, so the halves exist.
+            if let Store::Halves(a, b) = &mut self.store {
+                let factor = if parity == 1 { a } else { b };
+                factor.forget(self.sqrt_lambda_blocks);
+                factor.merge(&self.block);
+            }
             self.block.clear();
         }
     }
 
     /// The weights the two halves A and B have with the block in progress merged in.
     fn half_weights(&self) -> (T, T) {
-        let (mut a, mut b) = (self.a.weight(), self.b.weight());
+        let (mut a, mut b) = match &self.store {
+            Store::Halves(a, b) => (a.weight(), b.weight()),
+            Store::Warmup(_) => (T::ZERO, T::ZERO),
+        };
         if self.block.weight() > T::ZERO {
             if (self.counters.rows / self.block_len).is_multiple_of(2) {
                 a += self.block.weight();
@@ -728,9 +754,18 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     /// stack holds three factors and one matrix instead of seven factors and four matrices
     /// (20 KB on the M4F with P = 16). The cost is a merge and up to five transforms per
     /// origin, about 2 % of a sweep.
+    #[inline(never)]
     fn prepare(&self, offset_v: T, c: T, halves: bool, w: &mut Work<T, P>) {
-        w.a.copy_from(&self.a);
-        w.b.copy_from(&self.b);
+        match &self.store {
+            Store::Halves(a, b) => {
+                w.a.copy_from(a);
+                w.b.copy_from(b);
+            }
+            Store::Warmup(_) => {
+                w.a.clear();
+                w.b.clear();
+            }
+        }
         if self.block.weight() > T::ZERO {
             if (self.counters.rows / self.block_len).is_multiple_of(2) {
                 w.a.merge(&self.block)
@@ -788,7 +823,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         if offsets && x_closed {
             self.equilibria(&w.all, &mut w.m, &mut candidates);
         }
-        let mut best: Option<(u32, T, T, screen::Sweep<T, P>)> = None;
+        // The best so far: its size, error and origin; its model is published at once (into
+        // `self.model`, whose memory exists anyway) instead of keeping its sweep on the stack.
+        let mut best: Option<(u32, T, T)> = None;
         for &start in candidates.iter() {
             // Refine the origin on the sparse model: the dense model's constant term is
             // poorly determined (it is nearly collinear with the even powers), the sparse
@@ -857,7 +894,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             // same error); else the lesser error.
             let better = match &best {
                 None => true,
-                Some((len, err, at, _)) => {
+                Some((len, err, at)) => {
                     let near = (selected.mean_error - *err).abs()
                         <= T::from_f64(ORIGIN_TIE) * selected.mean_error.min(*err);
                     selected.len() < *len
@@ -870,12 +907,17 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                 }
             };
             if better {
-                best = Some((selected.len(), selected.mean_error, c, result));
+                best = Some((selected.len(), selected.mean_error, c));
+                self.publish(&result, c, offset_v);
             }
         }
-        let Some((_, _, offset_x, sweep)) = best else {
-            return false;
-        };
+        best.is_some()
+    }
+
+    /// Makes the model of a sweep (at x origin `offset_x`, v origin `offset_v`) the current
+    /// one, in physical units.
+    fn publish(&mut self, sweep: &screen::Sweep<T, P>, offset_x: T, offset_v: T) {
+        let n = self.library.len();
         let mut coefficients = [T::ZERO; P];
         for j in 0..n {
             coefficients[j] = sweep.coefficients[j] * self.y_scale / self.scales[j];
@@ -915,7 +957,6 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             rejected: self.counters.rejected(),
             rows: self.counters.rows,
         });
-        true
     }
 
     /// The sweep with the x origin moved by `c` (and v's by `offset_v`).

@@ -438,7 +438,10 @@ fn profile(meter: &mut Meter) {
         let mut theta = [0.0f32; TERMS];
         let ((), cost) = meter.measure(|| {
             let (s, c) = phasor;
-            phasor = (s * rotation.1 + c * rotation.0, c * rotation.1 - s * rotation.0);
+            phasor = (
+                s * rotation.1 + c * rotation.0,
+                c * rotation.1 - s * rotation.0,
+            );
             library.evaluate_sin_cos(xr, vr, phasor.0, phasor.1, 0.0, &mut theta)
         });
         lib.add(cost);
