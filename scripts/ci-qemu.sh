@@ -38,7 +38,7 @@ crates/lssi-firmware/scripts/qemu-check.sh
 
 step "replay through the QEMU firmware == lssi identify --f32"
 LSSI_REQUIRE_QEMU=1 LSSI_FIRMWARE_ELF="$elf" \
-    cargo test --locked -p lssi-tests --test qemu -- --nocapture
+    cargo test --workspace --locked --test qemu -- --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then
     step "identifier cost, size and stack on the Cortex-M4F"

@@ -10,12 +10,19 @@
 //! away from the UART for 0.1–0.35 s at 64 MHz: a one-byte UART then overruns unless the host
 //! waits for the `Ack` of each batch (as `lssi replay` does) or RX is moved to an interrupt
 //! and a ring buffer. An overrun is logged.
+//!
+//! Between polls the loop drains the defmt logger's ring buffer ([`logger::take`]) into
+//! `DeviceMsg::Log` frames (`Device::send_log`), once the host has sent a frame.
 
 use lssi_device::Device;
 use lssi_firmware::cost::Meter;
 use lssi_firmware::once::TakeOnce;
-use lssi_firmware::platform;
 use lssi_firmware::uart::Uart0;
+use lssi_firmware::{logger, platform};
+
+/// Bytes of defmt log per `DeviceMsg::Log` frame (lssi-proto's `MAX_LOG`; `send_log`
+/// splits anything longer, so this only sets the stack buffer).
+const LOG_CHUNK: usize = 96;
 
 /// The device application's storage, in `.bss`.
 static DEVICE: TakeOnce<Device> = TakeOnce::new();
@@ -33,8 +40,27 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
         lssi_firmware::cost::Meter::unit(meter).as_str()
     );
     let mut screenings = 0;
+    let mut dropped = 0;
     loop {
         let Ok(_) = device.poll(uart, meter);
+        // The log goes out once the host has spoken: a UART with nobody listening (QEMU's
+        // pty before the host opens it) loses what it is sent, so the ring keeps the
+        // start-up lines until then.
+        if device.stats().frames_ok > 0 {
+            let mut chunk = [0u8; LOG_CHUNK];
+            loop {
+                let n = logger::take(&mut chunk);
+                if n == 0 {
+                    break;
+                }
+                let Ok(()) = device.send_log(uart, &chunk[..n]);
+            }
+            // Said with the ring just emptied, so that the warning itself fits.
+            if logger::dropped() != dropped {
+                dropped = logger::dropped();
+                defmt::warn!("log ring was full: {=u32} defmt frames dropped", dropped);
+            }
+        }
         if uart.take_overrun() {
             defmt::warn!("UART0 RX overrun: a received byte was lost");
         }

@@ -1,6 +1,6 @@
 //! Board support for the lssi Cortex-M4F image: CMSDK UART0 driver (lssi-device's
 //! transport), per-call cost meter (its cost meter), stack painting, a take-once static,
-//! defmt transport, panic and fault handling.
+//! defmt global logger (debug transport plus a ring buffer for the UART), panic and fault handling.
 //!
 //! Built for `thumbv7em-none-eabihf` only; the reference board is QEMU's `mps2-an386`.
 //! The image itself is `src/main.rs`.
@@ -11,6 +11,7 @@
 #![deny(missing_docs)]
 
 pub mod cost;
+pub mod logger;
 pub mod once;
 pub mod platform;
 pub mod stack;

@@ -5,6 +5,9 @@
 //!   the host by `defmt-print -e ELF`; [`exit`] ends QEMU with a status code.
 //! - feature `rtt`: defmt frames over RTT for probe-rs; [`exit`] stops at a breakpoint.
 //!
+//! In both cases the defmt global logger is [`crate::logger`], which also keeps the frames
+//! for the UART (`DeviceMsg::Log`).
+//!
 //! A panic or a hard fault is logged through defmt and ends the run with
 //! [`EXIT_PANIC`] / [`EXIT_HARD_FAULT`], so a test under QEMU fails at once instead of
 //! hanging until its timeout.
@@ -19,12 +22,6 @@ compile_error!(
 
 #[cfg(not(any(feature = "qemu", feature = "rtt")))]
 compile_error!("pick a defmt transport: feature `qemu` (the default) or `rtt`");
-
-#[cfg(feature = "qemu")]
-use defmt_semihosting as _;
-
-#[cfg(feature = "rtt")]
-use defmt_rtt as _;
 
 /// Exit status of a clean run.
 pub const EXIT_SUCCESS: i32 = 0;
