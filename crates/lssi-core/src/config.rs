@@ -75,6 +75,7 @@ impl Default for Config {
 
 /// A configuration field that is out of range.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum ConfigError {
     /// `sample_period` is not positive and finite.

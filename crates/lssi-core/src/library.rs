@@ -174,6 +174,7 @@ impl Default for LibraryConfig {
 
 /// Why a library cannot be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum LibraryError {
     /// `poly_order` is 0 or above [`MAX_POLY_ORDER`].

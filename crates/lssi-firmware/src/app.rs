@@ -12,7 +12,7 @@
 //! and a ring buffer. An overrun is logged.
 //!
 //! Between polls the loop drains the defmt logger's ring buffer ([`logger::take`]) into
-//! `DeviceMsg::Log` frames (`Device::send_log`), once the host has sent a frame.
+//! `DeviceMsg::Log` frames (`Device::send_log`), once the host has configured the device.
 
 use lssi_device::Device;
 use lssi_firmware::cost::Meter;
@@ -43,10 +43,11 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
     let mut dropped = 0;
     loop {
         let Ok(_) = device.poll(uart, meter);
-        // The log goes out once the host has spoken: a UART with nobody listening (QEMU's
-        // pty before the host opens it) loses what it is sent, so the ring keeps the
-        // start-up lines until then.
-        if device.stats().frames_ok > 0 {
+        // The log goes out once the host has configured the device: a UART with nobody
+        // listening (QEMU's pty before the host opens it) loses what it is sent, so the
+        // ring keeps the start-up lines until then, and the handshake (Hello, Configure)
+        // stays strictly one reply per command.
+        if device.config().is_some() {
             let mut chunk = [0u8; LOG_CHUNK];
             loop {
                 let n = logger::take(&mut chunk);
