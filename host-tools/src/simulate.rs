@@ -141,17 +141,9 @@ pub fn simulate(
             let f = |s: f64, x: f64, v: f64| model.acceleration(s, x, v, u_at(s));
             for k in 0..substeps {
                 let s = t0 + k as f64 * h;
-                let half = 0.5 * h;
-                let k1x = v;
-                let k1v = f(s, x, v);
-                let k2x = v + half * k1v;
-                let k2v = f(s + half, x + half * k1x, v + half * k1v);
-                let k3x = v + half * k2v;
-                let k3v = f(s + half, x + half * k2x, v + half * k2v);
-                let k4x = v + h * k3v;
-                let k4v = f(s + h, x + h * k3x, v + h * k3v);
-                x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-                v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+                let next = crate::ode::rk4_step(&f, s, crate::ode::State { x, v }, h);
+                x = next.x;
+                v = next.v;
             }
             if !(x.is_finite() && v.is_finite()) {
                 out.diverged_at = Some(i);

@@ -218,16 +218,23 @@ fn host_model(recording: &Recording, config: lssi_core::Config) -> Model<f32, TE
     id.model().expect("the host finds a model").clone()
 }
 
-#[test]
-fn bundled_recording_through_qemu_firmware_equals_host_f32() {
+/// The firmware ELF when QEMU and the image are there; otherwise `None` after printing why
+/// (or a failure, with `LSSI_REQUIRE_QEMU=1` as in CI).
+fn qemu_firmware() -> Option<PathBuf> {
     let elf = firmware_elf();
     if let Some(reason) = missing_prerequisite(&elf) {
         if std::env::var("LSSI_REQUIRE_QEMU").is_ok_and(|v| v == "1") {
             panic!("LSSI_REQUIRE_QEMU=1 but {reason}");
         }
         eprintln!("skipped: {reason}");
-        return;
+        return None;
     }
+    Some(elf)
+}
+
+#[test]
+fn bundled_recording_through_qemu_firmware_equals_host_f32() {
+    let Some(elf) = qemu_firmware() else { return };
 
     let file = repository().join("data/paper-eq17.csv");
     let recording = Recording::read(&file, &ColumnNames::default()).expect("bundled recording");
@@ -385,14 +392,7 @@ fn lssi_replay_qemu_reports_what_identify_f32_reports() {
     use lssi_host::commands::identify::{Family, identify_recording};
     use lssi_host::commands::replay::{ReplayArgs, replay};
 
-    let elf = firmware_elf();
-    if let Some(reason) = missing_prerequisite(&elf) {
-        if std::env::var("LSSI_REQUIRE_QEMU").is_ok_and(|v| v == "1") {
-            panic!("LSSI_REQUIRE_QEMU=1 but {reason}");
-        }
-        eprintln!("skipped: {reason}");
-        return;
-    }
+    let Some(elf) = qemu_firmware() else { return };
     let file = repository().join("data/paper-eq17.csv");
     let dir = tempfile::tempdir().expect("temp dir");
     let args = ReplayArgs {
