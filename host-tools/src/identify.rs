@@ -135,6 +135,10 @@ pub struct Report {
     /// left out), for [`crate::simulate`]; not part of the JSON.
     #[serde(skip)]
     pub model: Vec<(Term, f64)>,
+    /// One sentence per rejected sample, in order (which sample and why); not part of the
+    /// JSON (which carries the count), printed as warnings by `lssi identify`.
+    #[serde(skip)]
+    pub rejections: Vec<String>,
 }
 
 /// The configuration `identify` derives from a recording and the options.
@@ -375,15 +379,22 @@ pub fn run<T: Real>(
     let file = recording.path.display();
     let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
         Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
-    for s in recording.samples() {
+    let mut rejections = Vec::new();
+    for (i, s) in recording.samples().enumerate() {
         let sample = Sample {
             t: s.t,
             x: T::from_f64(s.x),
             v: s.v.map(T::from_f64),
             u: s.u.map(T::from_f64),
         };
-        // A rejected sample is counted by the identifier and reported; it never stops the run.
-        let _ = identifier.push(sample);
+        // A rejected sample is counted and reported; it never stops the run.
+        if let Err(why) = identifier.push(sample) {
+            rejections.push(format!(
+                "{file}: data row {} (t = {}): {why}; it was left out",
+                i + 1,
+                s.t
+            ));
+        }
     }
     identifier.screen();
     let counters = *identifier.counters();
@@ -395,13 +406,15 @@ pub fn run<T: Real>(
             identifier.library().len()
         ))
     })?;
-    Ok(report(
+    let mut report = report(
         model,
         &config,
         omega_estimated,
         counters.rejected(),
         std::any::type_name::<T>(),
-    ))
+    );
+    report.rejections = rejections;
+    Ok(report)
 }
 
 fn names(terms: &[Term], support: u32, omega: f64) -> Vec<String> {
@@ -469,6 +482,7 @@ pub fn report<T: Real, const P: usize>(
             .filter(|(_, c)| **c != T::ZERO)
             .map(|(t, c)| (*t, c.to_f64()))
             .collect(),
+        rejections: Vec::new(),
     }
 }
 

@@ -105,3 +105,44 @@ fn unwritable_output_exits_1() {
         text(&out.stderr)
     );
 }
+
+#[test]
+fn rejected_samples_are_named_on_stderr_and_the_rest_identifies() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("eq17.csv");
+    let made = lssi(&[
+        "gen",
+        "paper",
+        "--t-end",
+        "20",
+        "--dt",
+        "0.002",
+        "--observe",
+        "xv",
+        arg(&path),
+    ]);
+    assert!(made.status.success(), "{}", text(&made.stderr));
+    // Row 100 gets a NaN displacement, row 200 an absurd one.
+    let csv = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = csv.lines().map(str::to_string).collect();
+    for (row, value) in [(100usize, "NaN"), (200, "1e30")] {
+        let mut fields: Vec<&str> = lines[row].split(',').collect();
+        fields[1] = value;
+        lines[row] = fields.join(",");
+    }
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let out = lssi(&["identify", arg(&path), "--omega", "2", "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    let warnings: Vec<&str> = stderr.lines().collect();
+    assert_eq!(warnings.len(), 2, "{stderr}");
+    assert!(
+        warnings[0].contains("data row 100") && warnings[0].contains("NaN"),
+        "{stderr}"
+    );
+    assert!(warnings[1].contains("data row 200"), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["rejected"], 2);
+    let terms = report["terms"].as_array().unwrap();
+    assert!(terms.iter().any(|t| t["term"] == "x^3"), "{report}");
+}

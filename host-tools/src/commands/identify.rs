@@ -198,6 +198,18 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
         return run_track(args, &recording, &options);
     }
     let report = identify_recording(&recording, &options)?;
+    // Each rejected sample, on stderr: the first few named, then how many more.
+    const NAMED: usize = 5;
+    for warning in report.rejections.iter().take(NAMED) {
+        eprintln!("lssi: warning: {warning}.");
+    }
+    if report.rejections.len() > NAMED {
+        eprintln!(
+            "lssi: warning: {} more samples were left out ({} in all).",
+            report.rejections.len() - NAMED,
+            report.rejections.len()
+        );
+    }
     if args.json {
         println!("{}", serde_json::to_string(&report).unwrap_or_default());
     } else {
