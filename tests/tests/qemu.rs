@@ -389,34 +389,19 @@ fn bundled_recording_through_qemu_firmware_equals_host_f32() {
 /// report of `lssi identify --f32` on the same file.
 #[test]
 fn lssi_replay_qemu_reports_what_identify_f32_reports() {
-    use lssi_host::commands::identify::{Family, identify_recording};
+    use lssi_host::commands::identify::identify_recording;
     use lssi_host::commands::replay::{ReplayArgs, replay};
 
     let Some(elf) = qemu_firmware() else { return };
     let file = repository().join("data/paper-eq17.csv");
     let dir = tempfile::tempdir().expect("temp dir");
     let args = ReplayArgs {
-        file: file.clone(),
-        port: None,
-        baud: 921_600,
-        flip_rate: 0.0,
-        drop_rate: 0.0,
-        burst: 0,
-        seed: 1,
         qemu: true,
         firmware: Some(elf.clone()),
         elf: Some(elf),
         log: Some(dir.path().join("qemu.tlm")),
-        window: 8,
-        batch: 24,
-        omega: None,
-        harmonics: 1,
-        poly_order: 3,
-        family: Family::All,
-        no_smoothing: false,
-        memory: None,
         json: true,
-        columns: ColumnNames::default(),
+        ..ReplayArgs::for_file(&file).expect("default arguments")
     };
     let recording = Recording::read(&file, &ColumnNames::default()).expect("bundled recording");
     let expected =

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use lssi_host::commands::identify::{Family, identify_recording};
+use lssi_host::commands::identify::identify_recording;
 use lssi_host::commands::replay::{ReplayArgs, replay};
 use lssi_host::device::find_firmware_sim;
 use lssi_host::recording::{ColumnNames, Recording};
@@ -27,27 +27,10 @@ fn args(file: &Path, log: &Path, baud: u32) -> ReplayArgs {
         "firmware-sim is not built: run `cargo test --workspace` (or `cargo build -p firmware-sim --profile test`)"
     );
     ReplayArgs {
-        file: file.to_path_buf(),
-        port: None,
         baud,
-        flip_rate: 0.0,
-        drop_rate: 0.0,
-        burst: 0,
-        seed: 1,
-        qemu: false,
-        firmware: None,
-        elf: None,
         log: Some(log.to_path_buf()),
-        window: 8,
-        batch: 24,
-        omega: None,
-        harmonics: 1,
-        poly_order: 3,
-        family: Family::All,
-        no_smoothing: false,
-        memory: None,
         json: true,
-        columns: ColumnNames::default(),
+        ..ReplayArgs::for_file(file).unwrap()
     }
 }
 

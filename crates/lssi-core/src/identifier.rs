@@ -454,7 +454,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let keep = T::from_f64(0.5);
         let (sx, sv, n) = self.d4;
         if n > T::ZERO {
-            let sigma2 = |sum: T| sum / (T::from_f64(70.0) * n);
+            let sigma2 = |sum: T| sum / (T::from_f64(crate::tuning::FOURTH_DIFFERENCE_GAIN) * n);
             let noise_x = sigma2(sx) * self.gains.0;
             let noise_v = if self.config.channels.velocity {
                 sigma2(sv) * self.gains.1
@@ -517,14 +517,6 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             }
             d * d
         };
-        if self.config.smoothing && self.x.len() >= 5 {
-            self.d4.0 += d4(&self.x);
-            if self.config.channels.velocity {
-                self.d4.1 += d4(&self.v);
-            }
-            self.d4.2 += T::ONE;
-            self.power.0 += x_hat * x_hat;
-        }
         let (v_hat, y_hat) = if self.config.channels.velocity {
             let (va, vb) = self.v.as_slices();
             let v_hat = taps.apply(0, va, vb);
@@ -560,7 +552,15 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         } else {
             T::ZERO
         };
-        if self.config.smoothing && self.x.len() >= 5 {
+        // What the smoothing decision needs (`adapt_smoothing`); the window holds at least
+        // five samples (its minimum is degree + 3 ≥ 5).
+        if self.config.smoothing {
+            self.d4.0 += d4(&self.x);
+            if self.config.channels.velocity {
+                self.d4.1 += d4(&self.v);
+            }
+            self.d4.2 += T::ONE;
+            self.power.0 += x_hat * x_hat;
             self.power.1 += v_hat * v_hat;
         }
         let t_centre = t_newest - (self.config.window - 1) as f64 / 2.0 * self.config.sample_period;
@@ -579,16 +579,6 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             match (sx, sv) {
                 (Some(x), Some(v)) if self.delay_len == DELAY => {
                     let (y, u, t) = self.delay[self.delay_head];
-                    let x = if self.smoothing_on.0 {
-                        x
-                    } else {
-                        self.smooth_x.centre()
-                    };
-                    let v = if self.smoothing_on.1 {
-                        v
-                    } else {
-                        self.smooth_v.centre()
-                    };
                     Row { x, v, y, u, t }
                 }
                 _ => return,

@@ -140,10 +140,9 @@ impl<T: Real> KnnSmoother<T> {
         self.push_with(value, true)
     }
 
-    /// [`Self::push`], when `apply` is true. When it is false, the caller will not use the
-    /// smoothed value: ε(K) is still accumulated, on one row in 16 instead of one in 4, and
-    /// the other rows only go into the history; what comes back is then the unsmoothed
-    /// [`Self::centre`] on the rows not evaluated.
+    /// [`Self::push`], when `apply` is true. When it is false the smoothing is not applied:
+    /// ε(K) is still accumulated, on one row in 16 instead of one in 4, the other rows only
+    /// go into the history, and what comes back is the unsmoothed value ([`Self::centre`]).
     pub fn push_with(&mut self, value: T, apply: bool) -> Option<T> {
         self.ring[(self.head + self.filled) % RING] = value;
         if self.filled < RING {
@@ -278,7 +277,7 @@ impl<T: Real> KnnSmoother<T> {
                 let estimate = weights_for(k);
                 let e = own - estimate;
                 self.errors[k] += e * e;
-                if k == self.k {
+                if apply && k == self.k {
                     chosen = estimate;
                 }
             }

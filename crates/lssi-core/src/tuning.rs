@@ -93,6 +93,10 @@ pub fn choose_window<T: Real, const W: usize>(
     Some(choice)
 }
 
+/// E[(Δ⁴s)²] / σ² for white noise of variance σ² on a signal smooth at the sample rate
+/// (1 + 16 + 36 + 16 + 1): the identifier's running noise estimate uses it too.
+pub(crate) const FOURTH_DIFFERENCE_GAIN: f64 = 70.0;
+
 /// White-noise variance from fourth differences: E[(Δ⁴s)²] = 70σ² when the signal is smooth
 /// at the sample rate (an over-estimate when it is not).
 fn noise_variance<T: Real>(source: &[T]) -> f64 {
@@ -106,7 +110,7 @@ fn noise_variance<T: Real>(source: &[T]) -> f64 {
             + w[4].to_f64();
         d4 += d * d;
     }
-    d4 / (n - 4) as f64 / 70.0
+    d4 / (n - 4) as f64 / FOURTH_DIFFERENCE_GAIN
 }
 
 /// Mean period of `source` in samples, from its zero-crossing rate: the mean-removed signal

@@ -92,6 +92,19 @@ pub struct ReplayArgs {
 }
 
 impl ReplayArgs {
+    /// The arguments of `lssi replay FILE` with every flag at its command-line default
+    /// (firmware-sim on a pty), for benchmarks and tests to adjust.
+    pub fn for_file(file: &std::path::Path) -> Result<Self, CliError> {
+        #[derive(clap::Parser)]
+        struct Replay {
+            #[command(flatten)]
+            args: ReplayArgs,
+        }
+        <Replay as clap::Parser>::try_parse_from([std::ffi::OsStr::new("replay"), file.as_os_str()])
+            .map(|r| r.args)
+            .map_err(|e| CliError::Input(format!("{}: {e}", file.display())))
+    }
+
     /// The identifier options: those `lssi identify --f32` takes from the same flags.
     ///
     /// The flags go through `lssi identify`'s own parser and checks, so both commands accept
@@ -439,27 +452,12 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     let mut result = Ok(());
     for &baud in &args.baud {
         let replay_args = ReplayArgs {
-            file: args.file.clone(),
-            port: None,
             baud,
-            flip_rate: 0.0,
-            drop_rate: 0.0,
-            burst: 0,
-            seed: 1,
-            qemu: false,
-            firmware: None,
-            elf: None,
             log: Some(dir.join(format!("bench-{baud}.tlm"))),
             window: args.window,
             batch: args.batch,
-            omega: None,
-            harmonics: 1,
-            poly_order: 3,
-            family: Family::All,
-            no_smoothing: false,
-            memory: None,
             json: true,
-            columns: ColumnNames::default(),
+            ..ReplayArgs::for_file(&args.file)?
         };
         match replay(&replay_args) {
             Ok(report) => {
