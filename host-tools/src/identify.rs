@@ -37,6 +37,8 @@ pub struct Options {
     pub smoothing: bool,
     /// Forgetting time constant, seconds.
     pub memory: Option<f64>,
+    /// Errors-in-variables correction of the normal equations (experimental).
+    pub noise_correction: bool,
 }
 
 impl Default for Options {
@@ -49,6 +51,7 @@ impl Default for Options {
             f32: true,
             smoothing: true,
             memory: None,
+            noise_correction: false,
         }
     }
 }
@@ -213,6 +216,7 @@ pub fn configure(
         channels,
         memory: options.memory,
         smoothing: options.smoothing,
+        noise_correction: options.noise_correction,
         ..Config::default()
     };
     let mut estimated = false;

@@ -50,6 +50,11 @@ pub struct Config {
     pub offsets: bool,
     /// A sample whose |x|, |v| or |u| exceeds this is absurd and rejected.
     pub max_abs: f64,
+    /// Take the noise of x̂ and v̂ out of the normal equations before each sweep (errors in
+    /// variables, the `eiv` module). Off by default: it removes the bias of the estimates
+    /// on a given support, but the MES selection at high noise is not yet up to it (see the
+    /// README's accuracy section).
+    pub noise_correction: bool,
 }
 
 impl Default for Config {
@@ -69,6 +74,7 @@ impl Default for Config {
             parsimony: 0.05,
             offsets: true,
             max_abs: 1e9,
+            noise_correction: false,
         }
     }
 }

@@ -28,6 +28,7 @@
 
 use crate::config::Config;
 use crate::derivative::{FoldedTaps, Taps};
+use crate::eiv;
 use crate::factor::Factor;
 use crate::library::{Library, Term};
 use crate::model::{MAX_SOLUTIONS, Model, Solution};
@@ -196,6 +197,10 @@ pub struct Identifier<T: Real, const W: usize, const P: usize> {
     d4: (T, T, T),
     /// ‖h‖² of the filters that make x̂ and v̂ from the raw channels.
     gains: (T, T),
+    /// h·h' of the filters that make x̂ and ŷ, and v̂ and ŷ (0 for different channels).
+    cross: (T, T),
+    /// RMS of x̂ and v̂ over the warm-up: the units of the scaled columns.
+    state_scales: (T, T),
     /// Σx̂², Σv̂² over the same rows as `d4`.
     power: (T, T),
     delay: [(T, T, f64); DELAY],
@@ -263,6 +268,15 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let norm = |h: &[T]| h.iter().fold(T::ZERO, |a, &v| a + v * v);
         let v_order = if config.channels.velocity { 0 } else { 1 };
         let gains = (norm(taps.taps(0)), norm(taps.taps(v_order)));
+        let dot = |p: &[T], q: &[T]| p.iter().zip(q).fold(T::ZERO, |a, (&p, &q)| a + p * q);
+        let cross = if config.channels.velocity {
+            (T::ZERO, dot(taps.taps(0), taps.taps(1)))
+        } else {
+            (
+                dot(taps.taps(0), taps.taps(2)),
+                dot(taps.taps(1), taps.taps(2)),
+            )
+        };
         let taps = FoldedTaps::fold(&taps);
         let n = library.len();
         let stride = usize::from(config.row_stride);
@@ -286,6 +300,8 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             smoothing_on: (false, false),
             d4: (T::ZERO, T::ZERO, T::ZERO),
             gains,
+            cross,
+            state_scales: (T::ONE, T::ONE),
             power: (T::ZERO, T::ZERO),
             delay: [(T::ZERO, T::ZERO, 0.0); DELAY],
             delay_len: 0,
@@ -554,12 +570,14 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         };
         // What the smoothing decision needs (`adapt_smoothing`); the window holds at least
         // five samples (its minimum is degree + 3 ≥ 5).
-        if self.config.smoothing {
+        if self.config.smoothing || self.config.noise_correction {
             self.d4.0 += d4(&self.x);
             if self.config.channels.velocity {
                 self.d4.1 += d4(&self.v);
             }
             self.d4.2 += T::ONE;
+        }
+        if self.config.smoothing {
             self.power.0 += x_hat * x_hat;
             self.power.1 += v_hat * v_hat;
         }
@@ -656,6 +674,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             }
         });
         let (sx, sv, su, sy) = (rms[0], rms[1], rms[2], rms[3]);
+        self.state_scales = (sx, sv);
         for (j, term) in self.library.terms().iter().enumerate() {
             let d = match *term {
                 Term::Monomial { px, pv } => {
@@ -778,6 +797,53 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             }
             w.all.transform(&w.m);
         }
+        // Last, in the coordinates the sweep will use: the noise of x̂ and v̂ out.
+        if !self.config.noise_correction {
+            return;
+        }
+        let noise = self.row_noise();
+        let terms = self.library.terms();
+        if halves {
+            eiv::correct(&mut w.a, terms, &noise, &mut w.m);
+            eiv::correct(&mut w.b, terms, &noise, &mut w.m);
+        }
+        eiv::correct(&mut w.all, terms, &noise, &mut w.m);
+    }
+
+    /// The noise covariances of a row's x̂, v̂ and ŷ in the factors' scaled units, from the
+    /// raw channels' white-noise variance (fourth differences) through the filters. A
+    /// channel whose k-neighbour smoothing is applied has no known noise left: its terms
+    /// are 0 (see `eiv`).
+    fn row_noise(&self) -> eiv::RowNoise<T> {
+        let (sx, sv, n) = self.d4;
+        if n <= T::ZERO {
+            return eiv::RowNoise::default();
+        }
+        let sigma2 = |sum: T| sum / (T::from_f64(crate::tuning::FOURTH_DIFFERENCE_GAIN) * n);
+        let x2 = sigma2(sx);
+        let v2 = if self.config.channels.velocity {
+            sigma2(sv)
+        } else {
+            x2
+        };
+        let (ux, uv) = self.state_scales;
+        let uy = self.y_scale;
+        let (smooth_x, smooth_v) = self.smoothing_applied();
+        let mut noise = eiv::RowNoise {
+            xx: x2 * self.gains.0 / (ux * ux),
+            vv: v2 * self.gains.1 / (uv * uv),
+            xy: x2 * self.cross.0 / (ux * uy),
+            vy: v2 * self.cross.1 / (uv * uy),
+        };
+        if smooth_x {
+            noise.xx = T::ZERO;
+            noise.xy = T::ZERO;
+        }
+        if smooth_v {
+            noise.vv = T::ZERO;
+            noise.vy = T::ZERO;
+        }
+        noise
     }
 
     /// Runs a screening now (it also runs by itself every `screening_period` samples).

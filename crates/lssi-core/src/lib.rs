@@ -13,6 +13,7 @@
 
 pub mod config;
 pub mod derivative;
+mod eiv;
 pub mod factor;
 pub mod identifier;
 pub mod library;

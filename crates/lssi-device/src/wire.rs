@@ -148,6 +148,8 @@ pub fn config_from_wire(wire: &WireConfig) -> Config {
         parsimony: wire.parsimony,
         offsets: wire.offsets,
         max_abs: wire.max_abs,
+        // A host-side experiment that the protocol does not carry.
+        noise_correction: false,
     }
 }
 

@@ -57,6 +57,10 @@ pub struct IdentifyArgs {
     /// Forgetting time constant in seconds (default: remember everything).
     #[arg(long, value_name = "SECONDS")]
     pub memory: Option<f64>,
+    /// Experimental: take the noise of the derivative estimates out of the normal equations
+    /// (errors in variables; host only, the device protocol does not carry it)
+    #[arg(long)]
+    pub noise_correction: bool,
     /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
     #[arg(long)]
     pub json: bool,
@@ -133,6 +137,7 @@ impl IdentifyArgs {
             f32: !self.f64,
             smoothing: !self.no_smoothing,
             memory: self.memory,
+            noise_correction: self.noise_correction,
         })
     }
 }
