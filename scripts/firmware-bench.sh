@@ -4,7 +4,8 @@
 #   scripts/firmware-bench.sh            # builds 3 images, runs 2 under QEMU (about 1 min)
 #   LSSI_BENCH_RAW=1 scripts/firmware-bench.sh   # also print the firmware's raw lines
 #
-# The configuration is the device default: Identifier<f32, 256, 16>, x and a measured x',
+# The configuration is the device default: Identifier<f32, 256, 16, 2> (ring buffers for two
+# channels; the firmware's `three-channels` feature gives 3), x and a measured x',
 # window 255, the eq. 18 library (1, monomials of (x, x') to order 3, sin/cos(kΩt) for
 # k = 1..3), a screening every 10 000 samples; the signal is eq. 17, made on the device
 # (crates/lssi-firmware/src/bench_identifier.rs). Three release images of lssi-firmware:
@@ -125,7 +126,7 @@ pct() { # pct PART WHOLE
 }
 
 echo
-echo "lssi-core Identifier<f32, 256, 16> on a Cortex-M4F (QEMU mps2-an386, -icount shift=0)"
+echo "lssi-core Identifier<f32, 256, 16, 2> on a Cortex-M4F (QEMU mps2-an386, -icount shift=0)"
 echo "eq. 17 signal, x and x' measured, window 255, eq. 18 library (16 terms); $(rustc -V | cut -d' ' -f1-2)"
 echo
 printf '| %-52s | %12s | %-14s | %-14s |\n' "figure" "measured" "target" "goal 32K/8K/2000"

@@ -230,7 +230,7 @@ pub fn configure(
         };
     }
     config
-        .validate::<WINDOW_CAPACITY, TERM_CAPACITY>()
+        .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     Ok((config, estimated))
 }

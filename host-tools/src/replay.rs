@@ -13,7 +13,7 @@ use std::fmt;
 
 use lssi_core::Config;
 use lssi_device::wire::{config_to_wire, fits, model_from_snapshot};
-use lssi_proto::{ModelSnapshot, WireConfig, WireSample};
+use lssi_proto::{ModelSnapshot, NakReason, WireConfig, WireSample};
 use serde::Serialize;
 
 use crate::identify::{self, Report, TERM_CAPACITY};
@@ -95,6 +95,9 @@ pub fn report_from_snapshot(
 ///
 /// `config` comes from [`identify::configure`] on the same recording; a configuration that
 /// does not fit the device's capacities is refused here with a sentence that says which.
+/// The device's channel capacity is not in its `HelloReply`: a configuration with x, v and
+/// u that it refuses (the firmware keeps two channel rings unless built with its
+/// `three-channels` feature) gets a sentence saying so.
 pub fn replay_over(
     link: &mut Link<'_>,
     recording: &Recording,
@@ -110,7 +113,18 @@ pub fn replay_over(
             link.port()
         ))
     })?;
-    link.configure(&wire)?;
+    link.configure(&wire).map_err(|e| match e {
+        // `fits` passed and `identify::configure` validated the rest: with three channels,
+        // their count is what the device cannot take.
+        LinkError::Refused {
+            port,
+            reason: NakReason::BadConfig,
+            ..
+        } if config.channels.count() == 3 => ReplayError::Input(format!(
+            "{file}: the device ({port}) refused the configuration because this recording has 3 channels (x, v and u) and the device keeps ring buffers for fewer (the firmware keeps 2 unless built with `--features three-channels`), so flash such a firmware or drop the v or u column from the file."
+        )),
+        e => e.into(),
+    })?;
     let samples = wire_samples(recording);
     link.stream(&samples)?;
     let (snapshot, health) = link.query()?;

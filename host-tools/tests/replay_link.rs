@@ -56,12 +56,13 @@ impl Transport for Socket {
     }
 }
 
-/// Runs a device with window capacity `W` on `stream` until the host closes it.
-fn device<const W: usize>(stream: UnixStream, faults: Faults) -> JoinHandle<()> {
+/// Runs a device with window capacity `W` and `C` channel rings on `stream` until the host
+/// closes it.
+fn device<const W: usize, const C: usize>(stream: UnixStream, faults: Faults) -> JoinHandle<()> {
     std::thread::Builder::new()
         .stack_size(8 << 20)
         .spawn(move || {
-            let mut device: Box<Device<W, 24>> = Box::new(Device::new());
+            let mut device: Box<Device<W, 24, C>> = Box::new(Device::new());
             let mut reader = stream.try_clone().unwrap();
             let mut link = Socket(stream);
             let mut frame = Vec::new();
@@ -109,9 +110,13 @@ struct Outcome {
 }
 
 fn replay<const W: usize>(recording: &Recording, faults: Faults) -> Outcome {
+    replay_to::<W, 3>(recording, faults)
+}
+
+fn replay_to<const W: usize, const C: usize>(recording: &Recording, faults: Faults) -> Outcome {
     let (config, estimated) = identify::configure(recording, &Options::default()).unwrap();
     let (host, far) = UnixStream::pair().unwrap();
-    let device = device::<W>(far, faults);
+    let device = device::<W, C>(far, faults);
     host.set_read_timeout(Some(Duration::from_millis(20)))
         .unwrap();
     let dir = tempfile::tempdir().unwrap();
@@ -223,5 +228,29 @@ fn a_window_the_device_cannot_hold_is_refused_before_streaming() {
         }
         Err(other) => panic!("expected a refusal, got {other}"),
         Ok(_) => panic!("a 16-sample device took a {}-sample window", config.window),
+    }
+}
+
+#[test]
+fn three_channels_on_a_two_channel_device_are_refused_in_one_sentence() {
+    let mut recording = Recording::read(bundled(), &ColumnNames::default()).unwrap();
+    let two = replay_to::<1023, 2>(&recording, Faults::default());
+    assert_eq!(two.result.unwrap().report, identify_f32(&recording));
+    // The bundled x and v with the forcing 5 cos 2t as a measured u.
+    recording.u = Some(recording.t.iter().map(|t| 5.0 * (2.0 * t).cos()).collect());
+    recording.columns.u = Some("u".to_owned());
+    match replay_to::<1023, 2>(&recording, Faults::default()).result {
+        Err(ReplayError::Input(sentence)) => {
+            assert!(
+                sentence.contains(
+                    "refused the configuration because this recording has 3 channels (x, v and u)"
+                ),
+                "{sentence}"
+            );
+            assert!(sentence.contains("--features three-channels"), "{sentence}");
+            assert_eq!(sentence.matches(". ").count(), 0, "{sentence}");
+        }
+        Err(other) => panic!("expected a refusal, got {other}"),
+        Ok(_) => panic!("a two-channel device took x, v and u"),
     }
 }

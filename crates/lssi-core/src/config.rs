@@ -14,6 +14,14 @@ pub struct Channels {
     pub input: bool,
 }
 
+impl Channels {
+    /// How many sample channels these are with x: the ring buffers an
+    /// [`Identifier`](crate::Identifier) needs (1 to 3).
+    pub const fn count(&self) -> usize {
+        1 + self.velocity as usize + self.input as usize
+    }
+}
+
 /// The identifier's configuration. `Config::default()` is the one default configuration
 /// used for every benchmark row; only the sample period, Ω and the library differ between
 /// recordings, and those describe the recording, not the method.
@@ -113,6 +121,14 @@ pub enum ConfigError {
     MaxAbs(f64),
     /// The library asks for the input u, but the channels have none.
     InputWithoutChannel,
+    /// The channels (x, and v and u when measured) need more ring buffers than the
+    /// identifier's capacity `C` holds.
+    Channels {
+        /// Channels the configuration has, x included.
+        channels: usize,
+        /// Ring buffers the identifier has (its `C`).
+        capacity: usize,
+    },
 }
 
 impl fmt::Display for ConfigError {
@@ -133,6 +149,10 @@ impl fmt::Display for ConfigError {
             ConfigError::InputWithoutChannel => {
                 f.write_str("library.input asks for the excitation u, but channels.input says the samples carry none")
             }
+            ConfigError::Channels { channels, capacity } => write!(
+                f,
+                "the samples carry {channels} channels (x, and v and u when measured), but this identifier was built with ring buffers for {capacity}"
+            ),
         }
     }
 }
@@ -146,8 +166,11 @@ impl From<crate::library::LibraryError> for ConfigError {
 }
 
 impl Config {
-    /// Checks every field against the capacities `W` (window) and `P` (terms).
-    pub fn validate<const W: usize, const P: usize>(&self) -> Result<(), ConfigError> {
+    /// Checks every field against the capacities `W` (window), `P` (terms) and `C` (channel
+    /// ring buffers: x, and v and u when measured).
+    pub fn validate<const W: usize, const P: usize, const C: usize>(
+        &self,
+    ) -> Result<(), ConfigError> {
         if !(self.sample_period.is_finite() && self.sample_period > 0.0) {
             return Err(ConfigError::SamplePeriod(self.sample_period));
         }
@@ -185,6 +208,12 @@ impl Config {
         }
         if self.library.input && !self.channels.input {
             return Err(ConfigError::InputWithoutChannel);
+        }
+        if self.channels.count() > C {
+            return Err(ConfigError::Channels {
+                channels: self.channels.count(),
+                capacity: C,
+            });
         }
         Ok(())
     }

@@ -37,6 +37,9 @@ use crate::screen;
 use crate::smoothing::KnnSmoother;
 use heapless::HistoryBuf;
 
+/// The ring buffer of v, when v is measured (x's is ring 0, u's the next one).
+const V_RING: usize = 1;
+
 /// Regression rows kept before the column scales are known.
 const WARMUP_ROWS: usize = 64;
 /// Rows of the delay line that keeps x'', u and t in step with the smoothed x and v.
@@ -178,14 +181,22 @@ struct Row<T> {
     t: f64,
 }
 
-/// The streaming LSSI identifier: `W` samples of window capacity, `P` library terms.
-pub struct Identifier<T: Real, const W: usize, const P: usize> {
+/// The streaming LSSI identifier: `W` samples of window capacity, `P` library terms, `C`
+/// sample channels (ring buffers of `W` samples each: x, then v and u when measured).
+///
+/// `C = 3` takes every configuration; a device that never measures both v and u saves a
+/// ring buffer (`4·W` bytes in f32) with `C = 2`, or two with `C = 1` (x only). A
+/// configuration with more channels than `C` is refused ([`ConfigError::Channels`]).
+///
+/// [`ConfigError::Channels`]: crate::ConfigError::Channels
+pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 3> {
     config: Config,
     library: Library<P>,
     taps: FoldedTaps<T, W>,
-    x: HistoryBuf<T, W>,
-    v: HistoryBuf<T, W>,
-    u: HistoryBuf<T, W>,
+    /// The raw samples of each channel: x in ring 0, then v and u, each when measured.
+    rings: [HistoryBuf<T, W>; C],
+    /// The ring of u (meaningful only when u is measured): the one after v's, if any.
+    u_ring: usize,
     last_t: Option<f64>,
     since_row: u16,
     smooth_x: KnnSmoother<T>,
@@ -250,10 +261,10 @@ pub struct Identifier<T: Real, const W: usize, const P: usize> {
     model: Option<Model<T, P>>,
 }
 
-impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
-    /// Builds an identifier, checking the configuration once.
+impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P, C> {
+    /// Builds an identifier, checking the configuration once (against `W`, `P` and `C`).
     pub fn new(config: Config) -> Result<Self, crate::ConfigError> {
-        config.validate::<W, P>()?;
+        config.validate::<W, P, C>()?;
         let library = Library::new(&config.library)?;
         let taps = Taps::design(
             config.window,
@@ -286,13 +297,17 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         let lambda = config
             .memory
             .map_or(1.0, |tau| libm::exp(-row_period / tau));
+        // x in ring 0, then v and u in that order, each when measured (`validate` checked
+        // that they fit in C).
+        let u_ring = V_RING + usize::from(config.channels.velocity);
         Ok(Self {
             config,
             library,
             taps,
-            x: HistoryBuf::new(),
-            v: HistoryBuf::new(),
-            u: HistoryBuf::new(),
+            // Built in place: `[const { HistoryBuf::new() }; C]` put a zeroed copy of the
+            // rings on the stack (+3 KB of `new`'s stack on the M4F).
+            rings: core::array::from_fn(|_| HistoryBuf::new()),
+            u_ring,
             last_t: None,
             since_row: 0,
             smooth_x: KnnSmoother::new(),
@@ -364,7 +379,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
 
     /// Samples in the derivative window (fill level of the ring buffer).
     pub fn buffered(&self) -> usize {
-        self.x.len().min(self.config.window)
+        self.rings[0].len().min(self.config.window)
     }
 
     /// Samples between a sample arriving and its regression row (the fixed lag).
@@ -398,14 +413,15 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         }
         self.last_t = Some(sample.t);
         self.counters.accepted += 1;
-        self.x.write(sample.x);
+        // `check` made sure that v and u come exactly when configured, so they have rings.
+        self.rings[0].write(sample.x);
         if let Some(v) = sample.v {
-            self.v.write(v);
+            self.rings[V_RING].write(v);
         }
         if let Some(u) = sample.u {
-            self.u.write(u);
+            self.rings[self.u_ring].write(u);
         }
-        if self.x.len() >= self.config.window {
+        if self.rings[0].len() >= self.config.window {
             self.since_row += 1;
             if self.since_row >= self.config.row_stride {
                 self.since_row = 0;
@@ -500,9 +516,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     }
 
     fn restart(&mut self) {
-        self.x.clear();
-        self.v.clear();
-        self.u.clear();
+        for ring in self.rings.iter_mut() {
+            ring.clear();
+        }
         self.since_row = 0;
         self.smooth_x.restart();
         self.smooth_v.restart();
@@ -522,7 +538,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     /// Computes the regression row whose centre lies half a window behind `t_newest`.
     fn row(&mut self, t_newest: f64) {
         let taps = &self.taps;
-        let (xa, xb) = self.x.as_slices();
+        let (xa, xb) = self.rings[0].as_slices();
         let x_hat = taps.apply(0, xa, xb);
         // White noise of the raw channels from fourth differences of the newest samples.
         let d4 = |buffer: &HistoryBuf<T, W>| {
@@ -534,7 +550,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             d * d
         };
         let (v_hat, y_hat) = if self.config.channels.velocity {
-            let (va, vb) = self.v.as_slices();
+            let (va, vb) = self.rings[V_RING].as_slices();
             let v_hat = taps.apply(0, va, vb);
             // The velocity offset shows as mean(v) − mean(dx/dt). The sum of dx/dt over the
             // rows of a segment (between gaps) telescopes: by the midpoint rule,
@@ -563,7 +579,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             (taps.apply(1, xa, xb), taps.apply(2, xa, xb))
         };
         let u_hat = if self.config.channels.input {
-            let (ua, ub) = self.u.as_slices();
+            let (ua, ub) = self.rings[self.u_ring].as_slices();
             taps.apply(0, ua, ub)
         } else {
             T::ZERO
@@ -571,9 +587,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         // What the smoothing decision needs (`adapt_smoothing`); the window holds at least
         // five samples (its minimum is degree + 3 ≥ 5).
         if self.config.smoothing || self.config.noise_correction {
-            self.d4.0 += d4(&self.x);
+            self.d4.0 += d4(&self.rings[0]);
             if self.config.channels.velocity {
-                self.d4.1 += d4(&self.v);
+                self.d4.1 += d4(&self.rings[V_RING]);
             }
             self.d4.2 += T::ONE;
         }
@@ -882,15 +898,18 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         // The best so far: its size, error and origin; its model is published at once (into
         // `self.model`, whose memory exists anyway) instead of keeping its sweep on the stack.
         let mut best: Option<(u32, T, T)> = None;
+        // The sweep at the origin so far, filled in place (a returned sweep was another copy
+        // on the stack).
+        let mut result = screen::Sweep::new();
         for &start in candidates.iter() {
             // Refine the origin on the sparse model: the dense model's constant term is
             // poorly determined (it is nearly collinear with the even powers), the sparse
             // support's is not. Two passes move the origin to the sparse model's equilibrium.
             let mut c = start;
-            let mut result = self.sweep_at(offset_v, c, &mut w, grid, parsimony);
+            self.sweep_at(offset_v, c, &mut w, grid, parsimony, &mut result);
             if offsets && x_closed && start != T::ZERO {
                 for _ in 0..2 {
-                    let Some(selected) = result.solutions.get(result.selected).copied() else {
+                    let Some(selected) = result.chosen() else {
                         break;
                     };
                     let Some(step) = self.refine_origin(offset_v, c, selected.support, &mut w)
@@ -898,7 +917,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                         break;
                     };
                     c += step;
-                    result = self.sweep_at(offset_v, c, &mut w, grid, parsimony);
+                    self.sweep_at(offset_v, c, &mut w, grid, parsimony, &mut result);
                 }
             }
             // A sensor zero that is off by a little leaves small terms that the shift of x
@@ -908,7 +927,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
             // terms wins.
             if offsets && x_closed {
                 for _ in 0..2 {
-                    let Some(selected) = result.solutions.get(result.selected).copied() else {
+                    let Some(selected) = result.chosen() else {
                         break;
                     };
                     let Some(sparser) = result
@@ -927,8 +946,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                     let Some(c2) = self.best_origin(offset_v, c, sparser.support, &mut w) else {
                         break;
                     };
-                    let trial = self.sweep_at(offset_v, c2, &mut w, grid, parsimony);
-                    match trial.solutions.get(trial.selected) {
+                    let mut trial = screen::Sweep::new();
+                    self.sweep_at(offset_v, c2, &mut w, grid, parsimony, &mut trial);
+                    match trial.chosen() {
                         // Only a removal counts: the shift may take out the terms it
                         // created, never trade one term for another.
                         Some(t)
@@ -941,7 +961,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                     }
                 }
             }
-            let Some(selected) = result.solutions.get(result.selected).copied() else {
+            let Some(selected) = result.chosen() else {
                 continue;
             };
             // Fewer terms win; between equally sparse models whose held-out errors are
@@ -971,7 +991,9 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
     }
 
     /// Makes the model of a sweep (at x origin `offset_x`, v origin `offset_v`) the current
-    /// one, in physical units.
+    /// one, in physical units. Out of line: the model it builds (0.5 KB with P = 16) would
+    /// otherwise sit in `screen`'s frame under every sweep.
+    #[inline(never)]
     fn publish(&mut self, sweep: &screen::Sweep<T, P>, offset_x: T, offset_v: T) {
         let n = self.library.len();
         let mut coefficients = [T::ZERO; P];
@@ -1015,7 +1037,7 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         });
     }
 
-    /// The sweep with the x origin moved by `c` (and v's by `offset_v`).
+    /// The sweep with the x origin moved by `c` (and v's by `offset_v`), into `out`.
     fn sweep_at(
         &self,
         offset_v: T,
@@ -1023,10 +1045,11 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
         w: &mut Work<T, P>,
         grid: usize,
         parsimony: T,
-    ) -> screen::Sweep<T, P> {
+        out: &mut screen::Sweep<T, P>,
+    ) {
         self.prepare(offset_v, c, true, w);
         // The column map is spent once the factors are moved: it is the solves' scratch.
-        screen::sweep(&w.a, &w.b, &w.all, &mut w.m, grid, parsimony)
+        screen::sweep(&w.a, &w.b, &w.all, &mut w.m, grid, parsimony, out);
     }
 
     /// With the origin at `c`: the equilibrium, nearest 0, of the model on `support` and the
@@ -1215,5 +1238,166 @@ impl<T: Real, const W: usize, const P: usize> Identifier<T, W, P> {
                 break;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Channels, ConfigError, LibraryConfig, PolyFamily};
+
+    /// A forced Duffing oscillator x'' = −400x − 2x' − 4·10⁴x³ + u, u = 60 cos(15t), by RK4
+    /// (10 steps a sample of 1 ms): `n` samples of (t, x, v, u).
+    fn duffing(n: usize) -> Vec<(f64, f64, f64, f64)> {
+        let dt = 1e-3;
+        let u = |t: f64| 60.0 * (15.0 * t).cos();
+        let f = |t: f64, x: f64, v: f64| -400.0 * x - 2.0 * v - 4.0e4 * x * x * x + u(t);
+        let (mut x, mut v) = (0.01, 0.0);
+        let h = dt / 10.0;
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let t0 = i as f64 * dt;
+            out.push((t0, x, v, u(t0)));
+            for j in 0..10 {
+                let t = t0 + j as f64 * h;
+                let (k1x, k1v) = (v, f(t, x, v));
+                let (k2x, k2v) = (
+                    v + 0.5 * h * k1v,
+                    f(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v),
+                );
+                let (k3x, k3v) = (
+                    v + 0.5 * h * k2v,
+                    f(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v),
+                );
+                let (k4x, k4v) = (v + h * k3v, f(t + h, x + h * k3x, v + h * k3v));
+                x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+                v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+            }
+        }
+        out
+    }
+
+    fn config(channels: Channels) -> Config {
+        Config {
+            sample_period: 1e-3,
+            window: 63,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: if channels.input { 0 } else { 1 },
+                input: channels.input,
+            },
+            omega: 15.0,
+            channels,
+            screening_period: 5_000,
+            ..Config::default()
+        }
+    }
+
+    /// Everything a model says, floats as bits.
+    fn bits<const P: usize>(m: &Model<f32, P>) -> Vec<u64> {
+        let mut out: Vec<u64> = m
+            .coefficients
+            .iter()
+            .map(|c| u64::from(c.to_bits()))
+            .collect();
+        for s in m.solutions.iter() {
+            out.extend([
+                u64::from(s.threshold.to_bits()),
+                u64::from(s.mean_error.to_bits()),
+                u64::from(s.support),
+            ]);
+        }
+        out.extend([
+            m.terms.len() as u64,
+            m.selected as u64,
+            u64::from(m.k.0),
+            u64::from(m.k.1),
+            u64::from(m.offset_x.to_bits()),
+            u64::from(m.offset_v.to_bits()),
+            m.samples,
+            m.rejected,
+            m.rows,
+        ]);
+        out
+    }
+
+    /// Every model of the recording (each scheduled screening's, then one on request).
+    fn models<const C: usize>(channels: Channels, n: usize) -> Vec<Vec<u64>> {
+        let Ok(mut id) = Identifier::<f32, 128, 16, C>::new(config(channels)) else {
+            panic!("the configuration fits C = {C}");
+        };
+        let mut out = Vec::new();
+        for (t, x, v, u) in duffing(n) {
+            let sample = Sample {
+                t,
+                x: x as f32,
+                v: channels.velocity.then_some(v as f32),
+                u: channels.input.then_some(u as f32),
+            };
+            if id.push(sample) == Ok(true) {
+                out.push(bits(id.model().expect("a screening made it")));
+            }
+        }
+        assert!(id.screen());
+        out.push(bits(id.model().expect("a model")));
+        out
+    }
+
+    #[test]
+    fn more_channels_than_rings_are_refused() {
+        let all = Channels {
+            velocity: true,
+            input: true,
+        };
+        let expected = ConfigError::Channels {
+            channels: 3,
+            capacity: 2,
+        };
+        assert_eq!(config(all).validate::<128, 16, 2>(), Err(expected));
+        assert_eq!(
+            Identifier::<f32, 128, 16, 2>::new(config(all)).err(),
+            Some(expected)
+        );
+        assert_eq!(
+            expected.to_string(),
+            "the samples carry 3 channels (x, and v and u when measured), but this identifier \
+             was built with ring buffers for 2"
+        );
+        assert!(Identifier::<f32, 128, 16, 3>::new(config(all)).is_ok());
+        let xv = Channels {
+            velocity: true,
+            input: false,
+        };
+        assert!(Identifier::<f32, 128, 16, 2>::new(config(xv)).is_ok());
+        assert_eq!(
+            Identifier::<f32, 128, 16, 1>::new(config(xv)).err(),
+            Some(ConfigError::Channels {
+                channels: 2,
+                capacity: 1
+            })
+        );
+        assert!(Identifier::<f32, 128, 16, 1>::new(config(Channels::default())).is_ok());
+    }
+
+    #[test]
+    fn two_rings_give_the_models_of_three_bit_for_bit() {
+        for channels in [
+            Channels {
+                velocity: true,
+                input: false,
+            },
+            Channels {
+                velocity: false,
+                input: true,
+            },
+        ] {
+            let three = models::<3>(channels, 20_000);
+            assert_eq!(three.len(), 5, "{channels:?}");
+            assert_eq!(models::<2>(channels, 20_000), three, "{channels:?}");
+        }
+        let x = Channels::default();
+        assert_eq!(models::<1>(x, 12_000), models::<3>(x, 12_000));
     }
 }

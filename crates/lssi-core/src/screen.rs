@@ -22,12 +22,163 @@ use crate::real::Real;
 /// STLSQ iterations at one threshold before giving up on a fixed point.
 const MAX_ITERATIONS: usize = 12;
 
+/// The most thresholds one sweep tries: 0, the dense magnitudes, then the log grid's points
+/// from its small end as long as there is room (a grid of more than 96 − 1 − terms points
+/// loses its largest ones).
+const MAX_THRESHOLDS: usize = 96;
+
+/// hi/lo from which the log grid's points are known to rise with their index. With at most
+/// 255 points (`Config::thresholds` is a u8) each is at least a factor (hi/lo)^(1/254) above
+/// the one before, here 1 + 3.9·10⁻¹⁵ (17 ulps of f64), while `libm::pow` is within an ulp
+/// and the exponent's rounding moves a point by less; rounding to T and scaling by lo keep
+/// the order.
+const GRID_RISES: f64 = 1.0 + 1e-12;
+
 /// The result of one sweep.
 pub(crate) struct Sweep<T, const P: usize> {
     pub solutions: heapless::Vec<Solution<T>, MAX_SOLUTIONS>,
     pub selected: usize,
     /// Scaled coefficients of the selected support, solved on A and B together.
     pub coefficients: [T; P],
+}
+
+impl<T: Real, const P: usize> Sweep<T, P> {
+    /// An empty sweep, to be filled by [`sweep`].
+    pub fn new() -> Self {
+        Self {
+            solutions: heapless::Vec::new(),
+            selected: 0,
+            coefficients: [T::ZERO; P],
+        }
+    }
+
+    /// The solution MES selected, if the sweep found any.
+    pub fn chosen(&self) -> Option<Solution<T>> {
+        self.solutions.get(self.selected).copied()
+    }
+}
+
+/// The thresholds of a sweep in ascending order, made as they are tried instead of listed
+/// and sorted (the list was 388 bytes of the screening's stack on the M4F): 0, each nonzero
+/// dense magnitude just exceeded, and the `grid` points lo·(hi/lo)^(i/(grid − 1)) of a
+/// logarithmic grid between the least and the greatest magnitude, merged. The values come
+/// in the order of the sorted list, bit for bit, duplicates included.
+///
+/// The grid's points rise with i unless hi/lo is within [`GRID_RISES`] of 1 (two dense
+/// magnitudes equal to 12 digits, in f64); then the next one is picked among all of them.
+struct Thresholds<T, const P: usize> {
+    /// The dense magnitudes just exceeded, ascending, in `dense[..dense_len]`.
+    dense: [T; P],
+    dense_len: usize,
+    next_dense: usize,
+    lo: T,
+    ratio: f64,
+    /// grid − 1, the exponent's denominator.
+    steps: f64,
+    grid_len: usize,
+    /// Grid points taken so far; the last one picked (value, index) when they do not rise.
+    grid_taken: usize,
+    last_grid: Option<(T, usize)>,
+    grid_rises: bool,
+    /// The next grid point, once made.
+    pending: Option<T>,
+    zero_taken: bool,
+}
+
+impl<T: Real, const P: usize> Thresholds<T, P> {
+    fn new(magnitude: &[T; P], dense_support: u32, n: usize, grid: usize) -> Self {
+        let mut dense = [T::ZERO; P];
+        let mut dense_len = 0;
+        let (mut lo, mut hi) = (T::MAX, T::ZERO);
+        for j in 0..n {
+            if dense_support & (1 << j) != 0 && magnitude[j] > T::ZERO {
+                if dense_len < MAX_THRESHOLDS - 1 {
+                    dense[dense_len] = magnitude[j] * T::from_f64(1.000_001);
+                    dense_len += 1;
+                }
+                lo = lo.min(magnitude[j]);
+                hi = hi.max(magnitude[j]);
+            }
+        }
+        let d = &mut dense[..dense_len];
+        for i in 1..d.len() {
+            let mut k = i;
+            while k > 0 && d[k - 1] > d[k] {
+                d.swap(k - 1, k);
+                k -= 1;
+            }
+        }
+        let (grid_len, ratio) = if hi > lo && grid > 1 {
+            (grid.min(MAX_THRESHOLDS - 1 - dense_len), (hi / lo).to_f64())
+        } else {
+            (0, 1.0)
+        };
+        Self {
+            dense,
+            dense_len,
+            next_dense: 0,
+            lo,
+            ratio,
+            steps: grid.saturating_sub(1) as f64,
+            grid_len,
+            grid_taken: 0,
+            last_grid: None,
+            grid_rises: ratio >= GRID_RISES,
+            pending: None,
+            zero_taken: false,
+        }
+    }
+
+    fn grid_point(&self, i: usize) -> T {
+        self.lo * T::from_f64(libm::pow(self.ratio, i as f64 / self.steps))
+    }
+
+    /// The next grid point in ascending order (equal ones in index order).
+    fn next_grid(&mut self) -> Option<T> {
+        if self.grid_taken >= self.grid_len {
+            return None;
+        }
+        self.grid_taken += 1;
+        if self.grid_rises {
+            return Some(self.grid_point(self.grid_taken - 1));
+        }
+        let mut next: Option<(T, usize)> = None;
+        for i in 0..self.grid_len {
+            let v = self.grid_point(i);
+            let after = self
+                .last_grid
+                .is_none_or(|(last, at)| v > last || (v == last && i > at));
+            if after && next.is_none_or(|(least, _)| v < least) {
+                next = Some((v, i));
+            }
+        }
+        self.last_grid = next;
+        next.map(|(v, _)| v)
+    }
+}
+
+impl<T: Real, const P: usize> Iterator for Thresholds<T, P> {
+    type Item = T;
+
+    fn next(&mut self) -> Option<T> {
+        // 0 comes first: every other threshold is positive.
+        if !self.zero_taken {
+            self.zero_taken = true;
+            return Some(T::ZERO);
+        }
+        if self.pending.is_none() {
+            self.pending = self.next_grid();
+        }
+        let dense = self.dense[..self.dense_len].get(self.next_dense).copied();
+        match (dense, self.pending) {
+            (Some(d), Some(g)) if g < d => self.pending.take(),
+            (Some(d), _) => {
+                self.next_dense += 1;
+                Some(d)
+            }
+            (None, _) => self.pending.take(),
+        }
+    }
 }
 
 /// |ξ_j|·‖θ_j‖/‖y‖ for the columns in `support`.
@@ -102,9 +253,10 @@ fn held_out<T: Real, const P: usize>(
     }
 }
 
-/// Runs the sweep and MES over factors `a`, `b` and their union `all` (same columns).
-/// `grid` is the number of logarithmic thresholds, `parsimony` the near-tie tolerance;
-/// `work` is scratch for the solves.
+/// Runs the sweep and MES over factors `a`, `b` and their union `all` (same columns), into
+/// `out` (filled in place: a returned sweep was a second copy on the stack). `grid` is the
+/// number of logarithmic thresholds, `parsimony` the near-tie tolerance; `work` is scratch
+/// for the solves.
 pub(crate) fn sweep<T: Real, const P: usize>(
     a: &Factor<T, P>,
     b: &Factor<T, P>,
@@ -112,7 +264,8 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     work: &mut [[T; P]; P],
     grid: usize,
     parsimony: T,
-) -> Sweep<T, P> {
+    out: &mut Sweep<T, P>,
+) {
     let n = all.columns();
     let full: u32 = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
     let mut norms = [T::ZERO; P];
@@ -123,36 +276,11 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     let mut magnitude = [T::ZERO; P];
     scaled(&dense, &norms, y_norm, n, &mut magnitude);
 
-    // The thresholds: each nonzero dense magnitude, just exceeded, and a log grid.
-    let mut thresholds: heapless::Vec<T, 96> = heapless::Vec::new();
-    let _ = thresholds.push(T::ZERO);
-    let (mut lo, mut hi) = (T::MAX, T::ZERO);
-    for j in 0..n {
-        if dense_support & (1 << j) != 0 && magnitude[j] > T::ZERO {
-            let _ = thresholds.push(magnitude[j] * T::from_f64(1.000_001));
-            lo = lo.min(magnitude[j]);
-            hi = hi.max(magnitude[j]);
-        }
-    }
-    if hi > lo && grid > 1 {
-        let ratio = (hi / lo).to_f64();
-        for i in 0..grid {
-            let f = libm::pow(ratio, i as f64 / (grid - 1) as f64);
-            let _ = thresholds.push(lo * T::from_f64(f));
-        }
-    }
-    // Ascending, so solutions run from dense to sparse.
-    let t = thresholds.as_mut_slice();
-    for i in 1..t.len() {
-        let mut k = i;
-        while k > 0 && t[k - 1] > t[k] {
-            t.swap(k - 1, k);
-            k -= 1;
-        }
-    }
-
-    let mut solutions: heapless::Vec<Solution<T>, MAX_SOLUTIONS> = heapless::Vec::new();
-    for &threshold in thresholds.iter() {
+    // The thresholds, ascending, so that solutions run from dense to sparse.
+    let thresholds = Thresholds::new(&magnitude, dense_support, n, grid);
+    let solutions = &mut out.solutions;
+    solutions.clear();
+    for threshold in thresholds {
         let support = stlsq(all, work, &norms, y_norm, dense_support, threshold);
         if support == 0 || solutions.iter().any(|s| s.support == support) {
             continue;
@@ -197,13 +325,119 @@ pub(crate) fn sweep<T: Real, const P: usize>(
             selected = i;
         }
     }
-    let mut coefficients = [T::ZERO; P];
-    if let Some(s) = solutions.get(selected) {
-        all.solve_in(s.support, &mut coefficients, work);
+    out.selected = selected;
+    out.coefficients = [T::ZERO; P];
+    if let Some(s) = out.solutions.get(selected) {
+        all.solve_in(s.support, &mut out.coefficients, work);
     }
-    Sweep {
-        solutions,
-        selected,
-        coefficients,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The thresholds as the sweep once made them: listed (at most 96), then sorted.
+    fn listed<T: Real, const P: usize>(
+        magnitude: &[T; P],
+        dense_support: u32,
+        n: usize,
+        grid: usize,
+    ) -> Vec<T> {
+        let mut thresholds: heapless::Vec<T, 96> = heapless::Vec::new();
+        let _ = thresholds.push(T::ZERO);
+        let (mut lo, mut hi) = (T::MAX, T::ZERO);
+        for j in 0..n {
+            if dense_support & (1 << j) != 0 && magnitude[j] > T::ZERO {
+                let _ = thresholds.push(magnitude[j] * T::from_f64(1.000_001));
+                lo = lo.min(magnitude[j]);
+                hi = hi.max(magnitude[j]);
+            }
+        }
+        if hi > lo && grid > 1 {
+            let ratio = (hi / lo).to_f64();
+            for i in 0..grid {
+                let f = libm::pow(ratio, i as f64 / (grid - 1) as f64);
+                let _ = thresholds.push(lo * T::from_f64(f));
+            }
+        }
+        let t = thresholds.as_mut_slice();
+        for i in 1..t.len() {
+            let mut k = i;
+            while k > 0 && t[k - 1] > t[k] {
+                t.swap(k - 1, k);
+                k -= 1;
+            }
+        }
+        thresholds.to_vec()
+    }
+
+    fn bits<T: Real>(values: &[T]) -> Vec<u64> {
+        values.iter().map(|v| v.to_f64().to_bits()).collect()
+    }
+
+    /// Both ways of making the grid (rising, and picked one by one) against the sorted list.
+    fn check<T: Real, const P: usize>(magnitude: &[T; P], support: u32, n: usize, grid: usize) {
+        let expected = bits(&listed(magnitude, support, n, grid));
+        let made: Vec<T> = Thresholds::new(magnitude, support, n, grid).collect();
+        assert_eq!(bits(&made), expected);
+        let mut picked = Thresholds::new(magnitude, support, n, grid);
+        picked.grid_rises = false;
+        assert_eq!(bits(&picked.collect::<Vec<T>>()), expected);
+    }
+
+    fn to_array<T: Real, const P: usize>(values: &[f64]) -> [T; P] {
+        let mut out = [T::ZERO; P];
+        for (o, v) in out.iter_mut().zip(values) {
+            *o = T::from_f64(*v);
+        }
+        out
+    }
+
+    proptest! {
+        #[test]
+        fn thresholds_come_in_the_sorted_lists_order(
+            exponents in proptest::collection::vec(-12.0f64..6.0, 32),
+            zeros in any::<u32>(),
+            support in any::<u32>(),
+            repeat in 0usize..32,
+            n in 0usize..=32,
+            grid in 0usize..=255,
+        ) {
+            let mut values: Vec<f64> = exponents
+                .iter()
+                .enumerate()
+                .map(|(j, e)| if zeros & (1 << j) != 0 && j % 3 == 0 { 0.0 } else { libm::pow(10.0, *e) })
+                .collect();
+            // Equal magnitudes make equal thresholds.
+            values[repeat] = values[(repeat * 7) % 32];
+            check::<f32, 32>(&to_array(&values), support, n, grid);
+            check::<f64, 32>(&to_array(&values), support, n, grid);
+            check::<f32, 16>(&to_array(&values), support, n.min(16), grid);
+        }
+
+        #[test]
+        fn a_grid_between_nearly_equal_magnitudes_is_in_order(
+            base in 1e-6f64..1e3,
+            ulps in 1u64..4096,
+            grid in 2usize..=255,
+        ) {
+            // hi/lo within 10⁻¹² of 1: the grid's points need not rise with their index.
+            let hi = f64::from_bits(base.to_bits() + ulps);
+            let values = [base, hi, base, 0.0];
+            check::<f64, 4>(&to_array(&values), 0b1111, 4, grid);
+            check::<f32, 4>(&to_array(&values), 0b1111, 4, grid);
+        }
+    }
+
+    #[test]
+    fn a_grid_too_long_for_the_list_loses_its_largest_points() {
+        let values: Vec<f64> = (0..16).map(|j| 1.5f64.powi(j)).collect();
+        let magnitude: [f32; 16] = to_array(&values);
+        let made: Vec<f32> = Thresholds::new(&magnitude, u32::MAX, 16, 255).collect();
+        assert_eq!(made.len(), MAX_THRESHOLDS);
+        check(&magnitude, u32::MAX, 16, 255);
+        check(&magnitude, u32::MAX, 16, 24);
+        check(&magnitude, 0, 16, 24);
     }
 }

@@ -67,7 +67,7 @@
 //! | host sends | device replies |
 //! |---|---|
 //! | `Hello` (any version) | `HelloReply` with [`PROTOCOL_VERSION`], `max_terms` = P, `window_capacity` = W, `max_batch` = [`MAX_BATCH`] |
-//! | `Configure(c)` | builds the identifier from exactly `c` ([`wire::config_from_wire`]); `Ack { seq: CONTROL_SEQ }`, or `Nak { seq: CONTROL_SEQ, BadConfig }` and the previous configuration and state stay |
+//! | `Configure(c)` | builds the identifier from exactly `c` ([`wire::config_from_wire`]); `Ack { seq: CONTROL_SEQ }`, or (a field out of range, or more window, terms or channels than W, P, C) `Nak { seq: CONTROL_SEQ, BadConfig }` and the previous configuration and state stay |
 //! | `Samples(b)`, `b.seq` = next expected | every sample pushed once into the identifier (rejections are counted, not refused); `Ack { seq }`; then, if a scheduled screening ran during the batch, one `Model` (cause `Scheduled`, the latest) |
 //! | `Samples(b)`, `b.seq` < next expected | a duplicate: `Ack { seq }` again, nothing applied |
 //! | `Samples(b)`, `b.seq` > next expected | `Nak { seq: next expected, OutOfOrder }`: a batch was lost, resend from `seq` |
@@ -127,6 +127,10 @@ pub const DEFAULT_WINDOW: usize = 256;
 /// Library capacity of the firmware's identifier, in terms (the paper's harvester library,
 /// odd families to order 9 with a constant and one harmonic, has 13).
 pub const DEFAULT_TERMS: usize = 16;
+/// Sample channels the identifier keeps ring buffers for by default: x, v and u. A device
+/// built with fewer (the firmware's default is 2: x and one of v, u) naks a `Configure`
+/// that asks for more with `BadConfig`.
+pub const DEFAULT_CHANNELS: usize = 3;
 
 /// Bytes [`Device::poll`] reads from the transport per call (on its stack).
 pub const READ_CHUNK: usize = 64;
@@ -256,28 +260,32 @@ impl Stats {
 }
 
 /// The device application: a frame decoder, the identifier (f32, window capacity `W`
-/// samples, `P` library terms) and the link state.
+/// samples, `P` library terms, ring buffers for `C` sample channels) and the link state.
 ///
-/// 13.4 KiB with the defaults (see the crate README for `size_of` and the screening's
-/// stack); the firmware keeps it in a static. `P` may not exceed
+/// 11 KiB with the defaults, 10 KiB with `C = 2` (see the crate README for `size_of` and
+/// the screening's stack); the firmware keeps it in a static. `P` may not exceed
 /// [`lssi_proto::MAX_TERMS`] and `W` not `u16::MAX` (checked at compile time).
-pub struct Device<const W: usize = DEFAULT_WINDOW, const P: usize = DEFAULT_TERMS> {
+pub struct Device<
+    const W: usize = DEFAULT_WINDOW,
+    const P: usize = DEFAULT_TERMS,
+    const C: usize = DEFAULT_CHANNELS,
+> {
     decoder: HostFrameDecoder,
     tx: [u8; MAX_DEVICE_FRAME_LEN],
-    identifier: Option<Identifier<f32, W, P>>,
+    identifier: Option<Identifier<f32, W, P, C>>,
     next_seq: u32,
     /// Samples were pushed since the last screening ran (or was attempted).
     dirty: bool,
     stats: Stats,
 }
 
-impl<const W: usize, const P: usize> Default for Device<W, P> {
+impl<const W: usize, const P: usize, const C: usize> Default for Device<W, P, C> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const W: usize, const P: usize> Device<W, P> {
+impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
     /// The capacities fit the wire format.
     const CAPACITIES_FIT: () = {
         assert!(
@@ -362,7 +370,7 @@ impl<const W: usize, const P: usize> Device<W, P> {
     }
 
     /// The identifier, once configured.
-    pub fn identifier(&self) -> Option<&Identifier<f32, W, P>> {
+    pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
         self.identifier.as_ref()
     }
 
@@ -483,7 +491,7 @@ impl<const W: usize, const P: usize> Device<W, P> {
         }
     }
 
-    fn install(&mut self, identifier: Identifier<f32, W, P>) {
+    fn install(&mut self, identifier: Identifier<f32, W, P, C>) {
         self.identifier = Some(identifier);
         self.next_seq = 0;
         self.dirty = false;

@@ -111,6 +111,29 @@ fn a_bad_configuration_is_naked_and_the_old_one_stays() {
 }
 
 #[test]
+fn a_device_with_two_channel_rings_refuses_three_channels() {
+    let mut host: Host<DEFAULT_WINDOW, DEFAULT_TERMS, 2> = Host::default();
+    let mut config = duffing_config();
+    config.channels.velocity = true;
+    let wire = config_to_wire(&config).expect("fits");
+    assert_eq!(
+        host.exchange(&HostMsg::Configure(wire)),
+        [DeviceMsg::Ack { seq: CONTROL_SEQ }]
+    );
+    config.channels.input = true;
+    let wire = config_to_wire(&config).expect("fits");
+    assert_eq!(
+        host.exchange(&HostMsg::Configure(wire)),
+        [DeviceMsg::Nak {
+            seq: CONTROL_SEQ,
+            reason: NakReason::BadConfig
+        }]
+    );
+    // The x + v configuration stays.
+    assert!(host.device.config().is_some_and(|c| !c.channels.input));
+}
+
+#[test]
 fn the_device_rebuilds_exactly_the_hosts_config() {
     let mut host = DefaultHost::default();
     let mut config = duffing_config();

@@ -1,6 +1,6 @@
 //! The device application: lssi-device's command loop on UART0.
 //!
-//! The [`Device`] (identifier, frame decoder, transmit buffer, counters: about 16 KiB) lives
+//! The [`Device`] (identifier, frame decoder, transmit buffer, counters: about 10 KiB) lives
 //! in a static. The loop polls UART0 (which holds one received byte; QEMU holds the rest back
 //! until it is read, so nothing is lost there) and lets the device handle every frame the
 //! bytes complete, timing each sample's push with the cost meter. `Device::poll` bumps the
@@ -14,7 +14,8 @@
 //! Between polls the loop drains the defmt logger's ring buffer ([`logger::take`]) into
 //! `DeviceMsg::Log` frames (`Device::send_log`), once the host has configured the device.
 
-use lssi_device::Device;
+use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Device};
+use lssi_firmware::CHANNELS;
 use lssi_firmware::cost::Meter;
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::uart::Uart0;
@@ -24,8 +25,8 @@ use lssi_firmware::{logger, platform};
 /// splits anything longer, so this only sets the stack buffer).
 const LOG_CHUNK: usize = 96;
 
-/// The device application's storage, in `.bss`.
-static DEVICE: TakeOnce<Device> = TakeOnce::new();
+/// The device application's storage, in `.bss`: ring buffers for [`CHANNELS`] channels.
+static DEVICE: TakeOnce<Device<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>> = TakeOnce::new();
 
 /// Runs the command loop forever.
 pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
@@ -34,9 +35,10 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
         platform::exit(platform::EXIT_PANIC)
     };
     defmt::info!(
-        "lssi device ready: window capacity {=usize}, {=usize} terms, costs in {=str}",
-        lssi_device::DEFAULT_WINDOW,
-        lssi_device::DEFAULT_TERMS,
+        "lssi device ready: window capacity {=usize}, {=usize} terms, {=usize} channels, costs in {=str}",
+        DEFAULT_WINDOW,
+        DEFAULT_TERMS,
+        CHANNELS,
         lssi_firmware::cost::Meter::unit(meter).as_str()
     );
     let mut screenings = 0;

@@ -1,6 +1,6 @@
 //! `--features bench-identifier`: the cost of lssi-core's identifier on the target.
 //!
-//! The default configuration of the device: `Identifier<f32, 256, 16>`, two state channels
+//! The default configuration of the device: `Identifier<f32, 256, 16, CHANNELS>`, two state channels
 //! (x and a measured x'), window 255 of capacity 256, derivative degree 5, the library of
 //! the paper's eq. 18 (constant, the 9 monomials of (x, x') to order 3, sin/cos(kΩt) for
 //! k = 1..3: 16 terms), Ω = 2 rad/s, a row every 4 samples, a screening every 10 000
@@ -33,6 +33,7 @@
 use core::hint::black_box;
 
 use lssi_core::{Channels, Config, Identifier, LibraryConfig, PolyFamily, Sample};
+use lssi_firmware::CHANNELS;
 use lssi_firmware::cost::Meter;
 use lssi_firmware::{platform, stack};
 
@@ -40,8 +41,8 @@ use lssi_firmware::{platform, stack};
 pub const WINDOW_CAPACITY: usize = 256;
 /// Library capacity (terms).
 pub const TERMS: usize = 16;
-/// The identifier benchmarked.
-pub type Id = Identifier<f32, WINDOW_CAPACITY, TERMS>;
+/// The identifier benchmarked: ring buffers for the firmware's [`CHANNELS`] (x and v).
+pub type Id = Identifier<f32, WINDOW_CAPACITY, TERMS, CHANNELS>;
 
 /// Samples streamed: three screenings' worth.
 const SAMPLES: u32 = 30_000;

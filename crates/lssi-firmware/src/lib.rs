@@ -10,6 +10,14 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+/// Sample channels the identifier keeps ring buffers for (its `C`): x and one of v, u;
+/// x, v and u with the `three-channels` feature.
+pub const CHANNELS: usize = if cfg!(feature = "three-channels") {
+    3
+} else {
+    2
+};
+
 pub mod cost;
 pub mod logger;
 pub mod once;

@@ -57,14 +57,14 @@ impl CostMeter for FixedMeter {
 }
 
 /// The host end: frames commands into the device's receive queue and decodes its replies.
-pub struct Host<const W: usize, const P: usize> {
-    pub device: Box<Device<W, P>>,
+pub struct Host<const W: usize, const P: usize, const C: usize = 3> {
+    pub device: Box<Device<W, P, C>>,
     pub link: Loopback,
     pub meter: FixedMeter,
     decoder: DeviceFrameDecoder,
 }
 
-impl<const W: usize, const P: usize> Default for Host<W, P> {
+impl<const W: usize, const P: usize, const C: usize> Default for Host<W, P, C> {
     fn default() -> Self {
         Self {
             device: Box::new(Device::new()),
@@ -75,7 +75,7 @@ impl<const W: usize, const P: usize> Default for Host<W, P> {
     }
 }
 
-impl<const W: usize, const P: usize> Host<W, P> {
+impl<const W: usize, const P: usize, const C: usize> Host<W, P, C> {
     /// Queues raw bytes for the device.
     pub fn raw(&mut self, bytes: &[u8]) {
         self.link.rx.extend(bytes);
