@@ -15,6 +15,7 @@
 //! ```
 
 use crate::real::Real;
+use core::marker::PhantomData;
 
 /// The highest supported polynomial degree.
 pub const MAX_DEGREE: usize = 10;
@@ -67,17 +68,39 @@ pub struct Taps<T, const W: usize> {
     taps: [[T; W]; 3],
 }
 
-impl<T: Real, const W: usize> Taps<T, W> {
-    /// Designs the taps for a window of `len` samples, degree `degree`, sample period `dt`.
-    pub fn design(len: usize, degree: usize, dt: f64) -> Result<Self, TapsError> {
+/// The least-squares design of a window's taps, before any tap is made: rows 0, 1 and 2 of
+/// the inverse Gram matrix of the local polynomial (a few hundred bytes, where the taps take
+/// 3·N values). [`Taps::design`] makes every tap from it, and [`FoldedTaps::design`] folds
+/// them into place one sample at a time, so that no full set of taps needs to exist.
+///
+/// Generic over the `T` the taps are rounded to only so that it is compiled where it is used
+/// (a firmware builds it for size, where lssi-core's own code is built for speed: it runs
+/// once per configuration).
+#[derive(Clone, Copy, Debug)]
+pub struct Design<T> {
+    len: usize,
+    /// Coefficients of the polynomial (degree + 1).
+    m: usize,
+    /// (N − 1)/2: the abscissae are u_k = (k − half)/half.
+    half: f64,
+    /// half · dt: the unit of u in seconds.
+    scale: f64,
+    inverse: [[f64; MAX_DEGREE + 1]; 3],
+    real: PhantomData<T>,
+}
+
+impl<T: Real> Design<T> {
+    /// Designs the taps of a window of `len` samples (at most `max`), degree `degree`,
+    /// sample period `dt`. Every error is found here, before any tap is made.
+    pub fn new(len: usize, degree: usize, dt: f64, max: usize) -> Result<Self, TapsError> {
         if !(2..=MAX_DEGREE).contains(&degree) {
             return Err(TapsError::Degree(degree));
         }
-        if len < degree + 3 || len > W {
+        if len < degree + 3 || len > max {
             return Err(TapsError::Window {
                 window: len,
                 min: degree + 3,
-                max: W,
+                max,
             });
         }
         if !(dt.is_finite() && dt > 0.0) {
@@ -123,20 +146,56 @@ impl<T: Real, const W: usize> Taps<T, W> {
                 }
             }
         }
-        let scale = half * dt;
+        Ok(Self {
+            len,
+            m,
+            half,
+            scale: half * dt,
+            inverse: [inverse[0], inverse[1], inverse[2]],
+            real: PhantomData,
+        })
+    }
+
+    /// The window length N.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the window is empty (never, once designed).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The taps of the value, first and second derivative for sample `k` of the window
+    /// (0: the oldest), rounded to `T`.
+    pub fn taps(&self, k: usize) -> [T; 3] {
+        let (half, m, scale) = (self.half, self.m, self.scale);
+        let u = (k as f64 - half) / half;
+        let mut power = 1.0;
+        let mut basis = [0.0f64; MAX_DEGREE + 1];
+        for b in basis.iter_mut().take(m) {
+            *b = power;
+            power *= u;
+        }
+        let mut out = [T::ZERO; 3];
+        for (d, factor) in [(0usize, 1.0), (1, 1.0 / scale), (2, 2.0 / (scale * scale))] {
+            let coefficient: f64 = (0..m).map(|j| self.inverse[d][j] * basis[j]).sum();
+            out[d] = T::from_f64(coefficient * factor);
+        }
+        out
+    }
+}
+
+impl<T: Real, const W: usize> Taps<T, W> {
+    /// Designs the taps for a window of `len` samples, degree `degree`, sample period `dt`.
+    pub fn design(len: usize, degree: usize, dt: f64) -> Result<Self, TapsError> {
+        let design = Design::<T>::new(len, degree, dt, W)?;
         let mut taps = [[T::ZERO; W]; 3];
         for k in 0..len {
-            let u = (k as f64 - half) / half;
-            let mut power = 1.0;
-            let mut basis = [0.0f64; MAX_DEGREE + 1];
-            for b in basis.iter_mut().take(m) {
-                *b = power;
-                power *= u;
-            }
-            for (d, factor) in [(0usize, 1.0), (1, 1.0 / scale), (2, 2.0 / (scale * scale))] {
-                let coefficient: f64 = (0..m).map(|j| inverse[d][j] * basis[j]).sum();
-                taps[d][k] = T::from_f64(coefficient * factor);
-            }
+            let [h0, h1, h2] = design.taps(k);
+            taps[0][k] = h0;
+            taps[1][k] = h1;
+            taps[2][k] = h2;
         }
         Ok(Self { len, taps })
     }
@@ -242,6 +301,58 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
             }
         }
         Self { len, half, taps }
+    }
+
+    /// No taps (a window of 0 samples): storage for [`FoldedTaps::design`].
+    pub(crate) const fn empty() -> Self {
+        Self {
+            len: 0,
+            half: 0,
+            taps: [[T::ZERO; W]; 2],
+        }
+    }
+
+    /// Designs the taps in place, bit for bit as `FoldedTaps::fold(&Taps::design(..))`
+    /// makes them, without the full taps (3·W values) ever existing: `each` is handed the
+    /// full taps `[h₀[k], h₁[k], h₂[k]]` of every sample k = 0..N in order, e.g. to sum their
+    /// squares. `design` must be for a window of at most `W` samples (it is from
+    /// `Design::new(.., W)`); a longer one's taps past the storage are left out.
+    pub fn design(&mut self, design: &Design<T>, mut each: impl FnMut([T; 3])) {
+        let len = design.len();
+        let half = len.div_ceil(2);
+        self.len = len;
+        self.half = half;
+        let flat = self.taps.as_flattened_mut();
+        flat.fill(T::ZERO);
+        for k in 0..len {
+            let h = design.taps(k);
+            each(h);
+            let mirror = len - 1 - k;
+            for (order, &hk) in h.iter().enumerate() {
+                let odd = order == 1;
+                // The first tap of a pair waits in its slot (exactly: T → f64 is exact)
+                // until its mirror image comes; then the two are averaged as `fold` does.
+                let lower = k.min(mirror);
+                let Some(slot) = flat.get_mut(order * half + lower) else {
+                    continue;
+                };
+                if k < mirror {
+                    *slot = hk;
+                    continue;
+                }
+                let (a, b) = if k == mirror {
+                    (hk.to_f64(), hk.to_f64())
+                } else {
+                    (slot.to_f64(), hk.to_f64())
+                };
+                let v = if odd {
+                    if k == mirror { 0.0 } else { 0.5 * (a - b) }
+                } else {
+                    0.5 * (a + b)
+                };
+                *slot = T::from_f64(v);
+            }
+        }
     }
 
     /// The window length N.
@@ -440,6 +551,34 @@ mod tests {
                 assert_eq!(folded.apply(order, &x[..len - 1], &[]), 0.0);
             }
         }
+    }
+
+    #[test]
+    fn folded_in_place_is_fold_of_the_full_taps_bit_for_bit() {
+        fn check<T: Real + PartialEq>() {
+            let mut folded = FoldedTaps::<T, 64>::empty();
+            // Longest first: the storage is reused by the shorter windows.
+            for len in [64usize, 63, 33, 34, 8, 7] {
+                let full: Taps<T, 64> = Taps::design(len, 4, 0.003).unwrap();
+                let design = Design::<T>::new(len, 4, 0.003, 64).unwrap();
+                let mut seen = std::vec::Vec::new();
+                folded.design(&design, |h| seen.push(h));
+                let reference = FoldedTaps::fold(&full);
+                assert_eq!(
+                    (folded.len(), folded.half),
+                    (reference.len(), reference.half)
+                );
+                assert!(folded.taps == reference.taps, "{len}");
+                for (k, h) in seen.iter().enumerate() {
+                    for (order, hk) in h.iter().enumerate() {
+                        assert!(*hk == full.taps(order)[k], "{len} {order} {k}");
+                    }
+                }
+                assert_eq!(seen.len(), len);
+            }
+        }
+        check::<f32>();
+        check::<f64>();
     }
 
     #[test]

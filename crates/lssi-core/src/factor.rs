@@ -81,9 +81,9 @@ impl<T: Real> Rotation<T> {
 
 impl<T: Real, const P: usize> Factor<T, P> {
     /// An empty factor over `n` columns (`n` is clamped to `P`).
-    pub fn new(n: usize) -> Self {
+    pub const fn new(n: usize) -> Self {
         Self {
-            n: n.min(P),
+            n: if n < P { n } else { P },
             r: [[T::ZERO; P]; P],
             z: [T::ZERO; P],
             rho2: T::ZERO,

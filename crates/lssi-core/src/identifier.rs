@@ -26,11 +26,11 @@
 //! assert!((k + 4.0).abs() < 0.05, "{k}");
 //! ```
 
-use crate::config::Config;
-use crate::derivative::{FoldedTaps, Taps};
+use crate::config::{Channels, Config};
+use crate::derivative::{Design, FoldedTaps};
 use crate::eiv;
 use crate::factor::Factor;
-use crate::library::{Library, Term};
+use crate::library::{Library, LibraryConfig, PolyFamily, Term};
 use crate::model::{MAX_SOLUTIONS, Model, Solution};
 use crate::real::Real;
 use crate::screen;
@@ -97,6 +97,14 @@ impl<T: Real, const P: usize> Work<T, P> {
             m: [[T::ZERO; P]; P],
         }
     }
+}
+
+/// A configuration that passed every check, with what configuring needs from it that could
+/// fail: its library and the design of its taps.
+struct Plan<T, const P: usize> {
+    config: Config,
+    library: Library<P>,
+    design: Design<T>,
 }
 
 /// One measurement.
@@ -261,100 +269,346 @@ pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 
     model: Option<Model<T, P>>,
 }
 
+/// Where a device keeps its [`Identifier`]: empty until configured, then configured (and
+/// configured again) in place, so that the identifier never exists on the stack (9 KB with
+/// f32, W = 256, P = 16, and the 3 KB of full derivative taps that `Identifier::new`
+/// would design on top).
+///
+/// [`IdentifierSlot::new`] is `const` and its bytes are all zero: in a `static` it lies in
+/// `.bss` (no flash, no start-up copy).
+///
+/// ```
+/// use lssi_core::{Config, IdentifierSlot};
+/// // A firmware's would be a `static` (in `.bss`); a host test's is on the heap.
+/// let mut slot: Box<IdentifierSlot<f32, 128, 16, 1>> = Box::new(IdentifierSlot::new());
+/// assert!(slot.get().is_none());
+/// let config = Config { window: 63, ..Config::default() };
+/// slot.configure(config).unwrap();
+/// assert_eq!(slot.get().unwrap().config().window, 63);
+/// // A refused configuration leaves the slot as it was.
+/// assert!(slot.configure(Config { window: 500, ..config }).is_err());
+/// assert_eq!(slot.get().unwrap().config().window, 63);
+/// ```
+pub struct IdentifierSlot<T: Real, const W: usize, const P: usize, const C: usize = 3> {
+    configured: bool,
+    identifier: Identifier<T, W, P, C>,
+}
+
+impl<T: Real, const W: usize, const P: usize, const C: usize> Default
+    for IdentifierSlot<T, W, P, C>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Real, const W: usize, const P: usize, const C: usize> IdentifierSlot<T, W, P, C> {
+    /// An empty slot. `const`, all zero bytes.
+    pub const fn new() -> Self {
+        Self {
+            configured: false,
+            identifier: Identifier::zeroed(),
+        }
+    }
+
+    /// Configures the identifier in place: the first time, or anew (as
+    /// [`Identifier::reconfigure`]). Afterwards it is what `Identifier::new(config)` builds,
+    /// bit for bit. On an error (the configuration is checked first) the slot is left as it
+    /// was, configured or not.
+    pub fn configure(
+        &mut self,
+        config: Config,
+    ) -> Result<&mut Identifier<T, W, P, C>, crate::ConfigError> {
+        self.identifier.reconfigure(config)?;
+        self.configured = true;
+        Ok(&mut self.identifier)
+    }
+
+    /// The identifier, once configured.
+    pub fn get(&self) -> Option<&Identifier<T, W, P, C>> {
+        self.configured.then_some(&self.identifier)
+    }
+
+    /// The identifier, once configured.
+    pub fn get_mut(&mut self) -> Option<&mut Identifier<T, W, P, C>> {
+        self.configured.then_some(&mut self.identifier)
+    }
+}
+
 impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P, C> {
     /// Builds an identifier, checking the configuration once (against `W`, `P` and `C`).
+    ///
+    /// The value is built on the stack and moved (about 9 KB with f32, W = 256, P = 16); a
+    /// device that keeps its identifier in a static configures it there instead, with an
+    /// [`IdentifierSlot`]. Both give the same identifier, bit for bit.
     pub fn new(config: Config) -> Result<Self, crate::ConfigError> {
+        let plan = Self::plan(config)?;
+        let mut id = Self::zeroed();
+        id.apply(&plan);
+        Ok(id)
+    }
+
+    /// Configures this identifier anew, in place: afterwards it is exactly what
+    /// `Identifier::new(config)` builds (every sample, row, factor and model forgotten),
+    /// without a second identifier or the full derivative taps on the stack. On an error
+    /// (the configuration is checked first) nothing changes.
+    pub fn reconfigure(&mut self, config: Config) -> Result<(), crate::ConfigError> {
+        let plan = Self::plan(config)?;
+        self.apply(&plan);
+        Ok(())
+    }
+
+    /// Everything about `config` that can fail: it is checked (against `W`, `P` and `C`),
+    /// its library built and its taps designed (the small part: the rest is per sample).
+    fn plan(config: Config) -> Result<Plan<T, P>, crate::ConfigError> {
         config.validate::<W, P, C>()?;
         let library = Library::new(&config.library)?;
-        let taps = Taps::design(
+        let design = Design::new(
             config.window,
             usize::from(config.derivative_degree),
             config.sample_period,
+            W,
         )
         .map_err(|_| crate::ConfigError::Window {
             window: config.window,
             min: 0,
             max: W,
         })?;
-        let norm = |h: &[T]| h.iter().fold(T::ZERO, |a, &v| a + v * v);
-        let v_order = if config.channels.velocity { 0 } else { 1 };
-        let gains = (norm(taps.taps(0)), norm(taps.taps(v_order)));
-        let dot = |p: &[T], q: &[T]| p.iter().zip(q).fold(T::ZERO, |a, (&p, &q)| a + p * q);
-        let cross = if config.channels.velocity {
-            (T::ZERO, dot(taps.taps(0), taps.taps(1)))
-        } else {
-            (
-                dot(taps.taps(0), taps.taps(2)),
-                dot(taps.taps(1), taps.taps(2)),
-            )
-        };
-        let taps = FoldedTaps::fold(&taps);
-        let n = library.len();
-        let stride = usize::from(config.row_stride);
-        let block_len = (2 * config.window / stride).max(16) as u64;
-        let row_period = config.sample_period * f64::from(config.row_stride);
-        let step = config.omega * row_period;
-        let lambda = config
-            .memory
-            .map_or(1.0, |tau| libm::exp(-row_period / tau));
-        // x in ring 0, then v and u in that order, each when measured (`validate` checked
-        // that they fit in C).
-        let u_ring = V_RING + usize::from(config.channels.velocity);
-        Ok(Self {
+        Ok(Plan {
             config,
             library,
-            taps,
-            // Built in place: `[const { HistoryBuf::new() }; C]` put a zeroed copy of the
-            // rings on the stack (+3 KB of `new`'s stack on the M4F).
-            rings: core::array::from_fn(|_| HistoryBuf::new()),
-            u_ring,
+            design,
+        })
+    }
+
+    /// Storage for an identifier, not a usable one: every field zero (bits), the
+    /// configuration's too. [`Identifier::apply`] sets every field. `const` and all zero,
+    /// so that a static [`IdentifierSlot`] holding it lies in `.bss`: no flash, and no
+    /// start-up code building it on the stack.
+    const fn zeroed() -> Self {
+        Self {
+            config: Config {
+                sample_period: 0.0,
+                window: 0,
+                derivative_degree: 0,
+                library: LibraryConfig {
+                    poly_order: 0,
+                    family: PolyFamily::All,
+                    constant: false,
+                    harmonics: 0,
+                    input: false,
+                },
+                omega: 0.0,
+                channels: Channels {
+                    velocity: false,
+                    input: false,
+                },
+                memory: None,
+                screening_period: 0,
+                thresholds: 0,
+                smoothing: false,
+                row_stride: 0,
+                parsimony: 0.0,
+                offsets: false,
+                max_abs: 0.0,
+                noise_correction: false,
+            },
+            library: Library::zeroed(),
+            taps: FoldedTaps::empty(),
+            rings: [const { HistoryBuf::new() }; C],
+            u_ring: 0,
             last_t: None,
             since_row: 0,
-            smooth_x: KnnSmoother::new(),
-            smooth_v: KnnSmoother::new(),
+            smooth_x: KnnSmoother::zeroed(),
+            smooth_v: KnnSmoother::zeroed(),
             smoothing_on: (false, false),
             d4: (T::ZERO, T::ZERO, T::ZERO),
-            gains,
-            cross,
-            state_scales: (T::ONE, T::ONE),
+            gains: (T::ZERO, T::ZERO),
+            cross: (T::ZERO, T::ZERO),
+            state_scales: (T::ZERO, T::ZERO),
             power: (T::ZERO, T::ZERO),
             delay: [(T::ZERO, T::ZERO, 0.0); DELAY],
             delay_len: 0,
             delay_head: 0,
-            inverse_scales: [T::ONE; P],
-            scales: [T::ONE; P],
-            y_scale: T::ONE,
+            inverse_scales: [T::ZERO; P],
+            scales: [T::ZERO; P],
+            y_scale: T::ZERO,
             store: Store::Warmup(heapless::Vec::new()),
-            block: Factor::new(n),
-            block_len,
-            sqrt_lambda: T::from_f64(libm::sqrt(lambda)),
-            sqrt_lambda_blocks: T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * block_len as f64)),
+            block: Factor::new(0),
+            block_len: 0,
+            sqrt_lambda: T::ZERO,
+            sqrt_lambda_blocks: T::ZERO,
             short_v2: T::ZERO,
             long_v2: T::ZERO,
             long_weight: T::ZERO,
-            short_alpha: T::ONE / T::from_usize(block_len as usize),
-            x_min: T::MAX,
-            x_max: -T::MAX,
+            short_alpha: T::ZERO,
+            x_min: T::ZERO,
+            x_max: T::ZERO,
             dv_sum: T::ZERO,
             dv_weight: T::ZERO,
             dv_prev: T::ZERO,
             dv_rows: 0,
             dv_last: T::ZERO,
-            inverse_row_period: T::from_f64(1.0 / row_period),
-            phasor: (T::ZERO, T::ONE),
+            inverse_row_period: T::ZERO,
+            phasor: (T::ZERO, T::ZERO),
             phasor_t: None,
             phasor_age: 0,
-            // Through T's own sin/cos: in f32, sinf and cosf are linked already, libm's f64
-            // sin and cos would add 4 KB of flash (the rounding of the step to f32 turns
-            // the phasor by 10⁻⁹ rad a row at most, re-synced every PHASOR_RESYNC rows).
-            rotation: (T::from_f64(step).sin(), T::from_f64(step).cos()),
-            max_abs_sure: T::from_f64(config.max_abs * (1.0 - 1e-6)),
-            too_early: 0.5 * config.sample_period,
-            gap_after: 1.5 * config.sample_period,
-            counters: Counters::default(),
+            rotation: (T::ZERO, T::ZERO),
+            max_abs_sure: T::ZERO,
+            too_early: 0.0,
+            gap_after: 0.0,
+            counters: Counters {
+                accepted: 0,
+                non_finite: 0,
+                out_of_range: 0,
+                out_of_order: 0,
+                channels: 0,
+                gaps: 0,
+                rows: 0,
+                gated: 0,
+                screenings: 0,
+            },
             since_screen: 0,
             model: None,
-        })
+        }
+    }
+
+    /// Sets every field for the plan's configuration, in place: the state of a new
+    /// identifier. The one way every identifier is configured (`new`, `reconfigure` and
+    /// [`IdentifierSlot::configure`]), so that all three agree bit for bit. Out of line:
+    /// each of them would otherwise inline a copy.
+    #[inline(never)]
+    fn apply(&mut self, plan: &Plan<T, P>) {
+        // Every field by name (no `..`): a field added to the struct and not set here does
+        // not compile.
+        let Self {
+            config,
+            library,
+            taps,
+            rings,
+            u_ring,
+            last_t,
+            since_row,
+            smooth_x,
+            smooth_v,
+            smoothing_on,
+            d4,
+            gains,
+            cross,
+            state_scales,
+            power,
+            delay,
+            delay_len,
+            delay_head,
+            inverse_scales,
+            scales,
+            y_scale,
+            store,
+            block,
+            block_len,
+            sqrt_lambda,
+            sqrt_lambda_blocks,
+            short_v2,
+            long_v2,
+            long_weight,
+            short_alpha,
+            x_min,
+            x_max,
+            dv_sum,
+            dv_weight,
+            dv_prev,
+            dv_rows,
+            dv_last,
+            inverse_row_period,
+            phasor,
+            phasor_t,
+            phasor_age,
+            rotation,
+            max_abs_sure,
+            too_early,
+            gap_after,
+            counters,
+            since_screen,
+            model,
+        } = self;
+        let c = plan.config;
+        *config = c;
+        library.clone_from(&plan.library);
+        // The taps folded in place; on the way, ‖h‖² of the filters that make x̂ and v̂
+        // and the products h·h' with the filter that makes ŷ (sums over k in order, as
+        // over the full taps).
+        let velocity = c.channels.velocity;
+        let v_order = if velocity { 0 } else { 1 };
+        let (mut g0, mut g1) = (T::ZERO, T::ZERO);
+        let (mut c0, mut c1) = (T::ZERO, T::ZERO);
+        taps.design(&plan.design, |h| {
+            g0 += h[0] * h[0];
+            g1 += h[v_order] * h[v_order];
+            if velocity {
+                c1 += h[0] * h[1];
+            } else {
+                c0 += h[0] * h[2];
+                c1 += h[1] * h[2];
+            }
+        });
+        *gains = (g0, g1);
+        *cross = (c0, c1);
+        let n = plan.library.len();
+        let stride = usize::from(c.row_stride);
+        let blocks = (2 * c.window / stride).max(16) as u64;
+        let row_period = c.sample_period * f64::from(c.row_stride);
+        let step = c.omega * row_period;
+        let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
+        for ring in rings.iter_mut() {
+            ring.clear();
+        }
+        // x in ring 0, then v and u in that order, each when measured (`validate` checked
+        // that they fit in C).
+        *u_ring = V_RING + usize::from(velocity);
+        *last_t = None;
+        *since_row = 0;
+        *smooth_x = KnnSmoother::new();
+        *smooth_v = KnnSmoother::new();
+        *smoothing_on = (false, false);
+        *d4 = (T::ZERO, T::ZERO, T::ZERO);
+        *state_scales = (T::ONE, T::ONE);
+        *power = (T::ZERO, T::ZERO);
+        *delay = [(T::ZERO, T::ZERO, 0.0); DELAY];
+        *delay_len = 0;
+        *delay_head = 0;
+        *inverse_scales = [T::ONE; P];
+        *scales = [T::ONE; P];
+        *y_scale = T::ONE;
+        *store = Store::Warmup(heapless::Vec::new());
+        *block = Factor::new(n);
+        *block_len = blocks;
+        *sqrt_lambda = T::from_f64(libm::sqrt(lambda));
+        *sqrt_lambda_blocks = T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * blocks as f64));
+        *short_v2 = T::ZERO;
+        *long_v2 = T::ZERO;
+        *long_weight = T::ZERO;
+        *short_alpha = T::ONE / T::from_usize(blocks as usize);
+        *x_min = T::MAX;
+        *x_max = -T::MAX;
+        *dv_sum = T::ZERO;
+        *dv_weight = T::ZERO;
+        *dv_prev = T::ZERO;
+        *dv_rows = 0;
+        *dv_last = T::ZERO;
+        *inverse_row_period = T::from_f64(1.0 / row_period);
+        *phasor = (T::ZERO, T::ONE);
+        *phasor_t = None;
+        *phasor_age = 0;
+        // Through T's own sin/cos: in f32, sinf and cosf are linked already, libm's f64
+        // sin and cos would add 4 KB of flash (the rounding of the step to f32 turns
+        // the phasor by 10⁻⁹ rad a row at most, re-synced every PHASOR_RESYNC rows).
+        *rotation = (T::from_f64(step).sin(), T::from_f64(step).cos());
+        *max_abs_sure = T::from_f64(c.max_abs * (1.0 - 1e-6));
+        *too_early = 0.5 * c.sample_period;
+        *gap_after = 1.5 * c.sample_period;
+        *counters = Counters::default();
+        *since_screen = 0;
+        *model = None;
     }
 
     /// The configuration.
@@ -1328,6 +1582,15 @@ mod tests {
         let Ok(mut id) = Identifier::<f32, 128, 16, C>::new(config(channels)) else {
             panic!("the configuration fits C = {C}");
         };
+        models_of(&mut id, channels, n)
+    }
+
+    /// Every model `id` gives on the recording.
+    fn models_of<const C: usize>(
+        id: &mut Identifier<f32, 128, 16, C>,
+        channels: Channels,
+        n: usize,
+    ) -> Vec<Vec<u64>> {
         let mut out = Vec::new();
         for (t, x, v, u) in duffing(n) {
             let sample = Sample {
@@ -1343,6 +1606,70 @@ mod tests {
         assert!(id.screen());
         out.push(bits(id.model().expect("a model")));
         out
+    }
+
+    #[test]
+    fn configured_in_place_gives_the_models_of_new_bit_for_bit() {
+        let xv = Channels {
+            velocity: true,
+            input: false,
+        };
+        let xu = Channels {
+            velocity: false,
+            input: true,
+        };
+        let reference = models::<3>(xv, 12_000);
+        // A slot, configured first for something else (x and u, a shorter window, no
+        // harmonics, forgetting) and run, then configured again in place.
+        let mut slot: Box<IdentifierSlot<f32, 128, 16, 3>> = Box::default();
+        assert!(slot.get().is_none());
+        let other = Config {
+            window: 41,
+            memory: Some(2.0),
+            ..config(xu)
+        };
+        let Ok(id) = slot.configure(other) else {
+            panic!("the other configuration is valid");
+        };
+        assert_eq!(models_of(id, xu, 11_000).len(), 3);
+        // A refused configuration changes nothing: the slot keeps its identifier and state.
+        let counters = *id.counters();
+        let bad = Config {
+            window: 129,
+            ..config(xv)
+        };
+        assert!(slot.configure(bad).is_err());
+        let Some(id) = slot.get_mut() else {
+            panic!("still configured");
+        };
+        assert_eq!((*id.config(), *id.counters()), (other, counters));
+        let Ok(id) = slot.configure(config(xv)) else {
+            panic!("valid");
+        };
+        assert!(id.model().is_none());
+        assert_eq!(id.counters(), &Counters::default());
+        assert_eq!(models_of(id, xv, 12_000), reference);
+        // `reconfigure` on a used identifier, and `new` on top of the same path.
+        let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(other) else {
+            panic!("valid");
+        };
+        let _ = models_of(&mut id, xu, 7_000);
+        assert!(id.reconfigure(bad).is_err());
+        assert_eq!(id.config(), &other);
+        assert!(id.reconfigure(config(xv)).is_ok());
+        assert_eq!(models_of(&mut id, xv, 12_000), reference);
+    }
+
+    #[test]
+    fn an_empty_slot_is_not_configured() {
+        let mut slot: Box<IdentifierSlot<f64, 64, 8, 1>> = Box::default();
+        assert!(slot.get().is_none() && slot.get_mut().is_none());
+        let bad = Config {
+            window: 65,
+            ..Config::default()
+        };
+        assert!(slot.configure(bad).is_err());
+        assert!(slot.get().is_none());
     }
 
     #[test]

@@ -24,7 +24,7 @@ pub mod smoothing;
 pub mod tuning;
 
 pub use config::{Channels, Config, ConfigError};
-pub use identifier::{Counters, Identifier, Rejection, Sample};
+pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample};
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, Term};
 pub use model::{MAX_SOLUTIONS, Model, Solution};
 pub use real::Real;

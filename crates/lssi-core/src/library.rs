@@ -223,6 +223,21 @@ pub struct Library<const P: usize> {
 }
 
 impl<const P: usize> Library<P> {
+    /// No terms and every field of its configuration zero: storage for an identifier not
+    /// configured yet.
+    pub(crate) const fn zeroed() -> Self {
+        Self {
+            terms: heapless::Vec::new(),
+            config: LibraryConfig {
+                poly_order: 0,
+                family: PolyFamily::All,
+                constant: false,
+                harmonics: 0,
+                input: false,
+            },
+        }
+    }
+
     /// Builds the library a configuration asks for.
     pub fn new(config: &LibraryConfig) -> Result<Self, LibraryError> {
         if config.poly_order == 0 || config.poly_order > MAX_POLY_ORDER {

@@ -75,6 +75,19 @@ impl<T: Real> KnnSmoother<T> {
     /// Rows between a value going in and its smoothed value coming out.
     pub const LAG: usize = SPAN + 1;
 
+    /// Every field zero (K too): storage that [`KnnSmoother::new`] then overwrites.
+    pub(crate) const fn zeroed() -> Self {
+        Self {
+            ring: [T::ZERO; RING],
+            filled: 0,
+            head: 0,
+            k: 0,
+            errors: [T::ZERO; MAX_NEIGHBOURS + 1],
+            evaluations: T::ZERO,
+            rows: 0,
+        }
+    }
+
     /// Forgets the history (after a gap in the data), keeping K and ε(K).
     pub fn restart(&mut self) {
         self.filled = 0;

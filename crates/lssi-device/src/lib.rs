@@ -105,7 +105,7 @@
 pub mod wire;
 
 use core::cmp::Ordering;
-use lssi_core::{Config, Identifier, Sample};
+use lssi_core::{Config, Identifier, IdentifierSlot, Sample};
 pub use lssi_proto::CostUnit;
 use lssi_proto::{
     CONTROL_SEQ, DeviceMsg, Error, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
@@ -272,7 +272,8 @@ pub struct Device<
 > {
     decoder: HostFrameDecoder,
     tx: [u8; MAX_DEVICE_FRAME_LEN],
-    identifier: Option<Identifier<f32, W, P, C>>,
+    /// Configured in place: the identifier never exists on the stack.
+    identifier: IdentifierSlot<f32, W, P, C>,
     next_seq: u32,
     /// Samples were pushed since the last screening ran (or was attempted).
     dirty: bool,
@@ -295,14 +296,16 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         assert!(W <= u16::MAX as usize, "W exceeds what HelloReply carries");
     };
 
-    /// A device waiting for `Hello` and `Configure`. `const`, so it can live in a static.
+    /// A device waiting for `Hello` and `Configure`. `const`, and every byte of it is zero
+    /// (its identifier is an empty [`IdentifierSlot`]): in a static it lies in `.bss`, with
+    /// nothing to build at start-up.
     pub const fn new() -> Self {
         #[allow(clippy::let_unit_value, reason = "forces the compile-time check")]
         let () = Self::CAPACITIES_FIT;
         Self {
             decoder: HostFrameDecoder::new(),
             tx: [0; MAX_DEVICE_FRAME_LEN],
-            identifier: None,
+            identifier: IdentifierSlot::new(),
             next_seq: 0,
             dirty: false,
             stats: Stats {
@@ -371,12 +374,12 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 
     /// The identifier, once configured.
     pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
-        self.identifier.as_ref()
+        self.identifier.get()
     }
 
     /// The configuration in force, once configured.
     pub fn config(&self) -> Option<&Config> {
-        self.identifier.as_ref().map(Identifier::config)
+        self.identifier.get().map(Identifier::config)
     }
 
     /// The sequence number of the next sample batch to apply.
@@ -386,7 +389,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 
     /// The health report as it would be sent now, with costs in `unit`.
     pub fn health(&self, unit: CostUnit) -> DeviceMsg {
-        let (samples, rejected, buffer_fill, screenings) = match &self.identifier {
+        let (samples, rejected, buffer_fill, screenings) = match self.identifier.get() {
             Some(id) => {
                 let c = id.counters();
                 let fill = u16::try_from(id.buffered()).unwrap_or(u16::MAX);
@@ -470,10 +473,13 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         link: &mut L,
     ) -> Result<(), L::Error> {
         let config = wire::config_from_wire(config);
-        match Identifier::new(config) {
-            Ok(identifier) => {
+        // In place: the identifier is built (or rebuilt) where it lives, never on the
+        // stack (its 9 KB and the derivative taps' 3 KB would come on top of the device's
+        // peak RAM). A refused configuration leaves the identifier as it was.
+        match self.identifier.configure(config) {
+            Ok(_) => {
                 log!(info, "configured: {}", config);
-                self.install(identifier);
+                self.restarted();
                 self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
             }
             Err(error) => {
@@ -491,22 +497,23 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
-    fn install(&mut self, identifier: Identifier<f32, W, P, C>) {
-        self.identifier = Some(identifier);
+    /// The link state after the identifier was (re)built.
+    fn restarted(&mut self) {
         self.next_seq = 0;
         self.dirty = false;
         self.stats.reset_costs();
     }
 
     fn reset<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+        // Rebuilt in place from the kept configuration, like `Configure`.
         let rebuilt = self
             .identifier
-            .as_ref()
-            .map(|id| Identifier::new(*id.config()));
+            .get_mut()
+            .map(|id| id.reconfigure(*id.config()));
         let reply = match rebuilt {
-            Some(Ok(identifier)) => {
+            Some(Ok(())) => {
                 log!(info, "reset");
-                self.install(identifier);
+                self.restarted();
                 DeviceMsg::Ack { seq: CONTROL_SEQ }
             }
             // A configuration that built once builds again; refused like no configuration.
@@ -524,7 +531,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         link: &mut L,
         meter: &mut M,
     ) -> Result<(), L::Error> {
-        let Some(identifier) = self.identifier.as_mut() else {
+        let Some(identifier) = self.identifier.get_mut() else {
             let nak = DeviceMsg::Nak {
                 seq: batch.seq,
                 reason: NakReason::NotConfigured,
@@ -580,7 +587,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         link: &mut L,
         meter: &mut M,
     ) -> Result<(), L::Error> {
-        let Some(identifier) = self.identifier.as_mut() else {
+        let Some(identifier) = self.identifier.get_mut() else {
             let nak = DeviceMsg::Nak {
                 seq: CONTROL_SEQ,
                 reason: NakReason::NotConfigured,
@@ -606,7 +613,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
     ) -> Result<(), L::Error> {
         let snapshot = self
             .identifier
-            .as_ref()
+            .get()
             .and_then(|id| id.model())
             .and_then(|model| wire::snapshot(model, cause).ok());
         match snapshot {

@@ -1,7 +1,8 @@
 //! The device application: lssi-device's command loop on UART0.
 //!
 //! The [`Device`] (identifier, frame decoder, transmit buffer, counters: about 10 KiB) lives
-//! in a static. The loop polls UART0 (which holds one received byte; QEMU holds the rest back
+//! in a static in `.bss`, never built at run time (its initial bytes are all zero); a
+//! `Configure` configures its identifier in place there. The loop polls UART0 (which holds one received byte; QEMU holds the rest back
 //! until it is read, so nothing is lost there) and lets the device handle every frame the
 //! bytes complete, timing each sample's push with the cost meter. `Device::poll` bumps the
 //! watchdog counter that `Health` reports: a host that sees it stop knows the loop hangs.
@@ -25,12 +26,16 @@ use lssi_firmware::{logger, platform};
 /// splits anything longer, so this only sets the stack buffer).
 const LOG_CHUNK: usize = 96;
 
-/// The device application's storage, in `.bss`: ring buffers for [`CHANNELS`] channels.
-static DEVICE: TakeOnce<Device<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>> = TakeOnce::new();
+/// The device application's storage, in `.bss` (its initial bytes are all zero: see
+/// [`TakeOnce`]): ring buffers for [`CHANNELS`] channels.
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.DEVICE")]
+static DEVICE: TakeOnce<Device<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>> =
+    TakeOnce::new(Device::new());
 
 /// Runs the command loop forever.
 pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
-    let Some(device) = DEVICE.take_with(Device::new) else {
+    let Some(device) = DEVICE.take() else {
         defmt::error!("the device application was already taken");
         platform::exit(platform::EXIT_PANIC)
     };
@@ -70,12 +75,16 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
         let s = device.stats();
         if s.screen_cost_max > 0 && s.screen_cost != screenings {
             screenings = s.screen_cost;
+            // The stack's peak (a scan of the painted region: only in a debug build of the
+            // log, DEFMT_LOG=debug, which evaluates this line) is the device's whole: the
+            // main loop's frames under the screening and every configuring so far.
             defmt::debug!(
-                "screening: {=u32} (worst {=u32}); per sample mean {=u32}, worst {=u32}",
+                "screening: {=u32} (worst {=u32}); per sample mean {=u32}, worst {=u32}; stack peak {=usize} bytes since reset",
                 s.screen_cost,
                 s.screen_cost_max,
                 s.cost_mean(),
-                s.cost_max
+                s.cost_max,
+                lssi_firmware::stack::peak_used()
             );
         }
     }

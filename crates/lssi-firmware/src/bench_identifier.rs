@@ -19,6 +19,10 @@
 //!    block, whose factor is then merged; the one-off warm-up flush; a screening), then one
 //!    explicit `screen()` as the host runs at the end of a file. Stack is measured by
 //!    painting: once over the samples before the first screening, once over the rest.
+//!    The identifier lives in a static [`IdentifierSlot`] in `.bss`, configured in place as
+//!    the device configures its own: its stack and cost are measured the first time (an
+//!    empty slot), and once more at the end (configuring the used identifier anew, as a
+//!    second `Configure` or a `Reset` does).
 //! 2. **Profile**: the stages of a row, run by the same public lssi-core parts the
 //!    identifier uses, each timed on its own: the four 255-tap FIR filters (x, x' and x'' or
 //!    their velocity counterparts), the two k-neighbour smoothers, the library row, the
@@ -32,9 +36,10 @@
 
 use core::hint::black_box;
 
-use lssi_core::{Channels, Config, Identifier, LibraryConfig, PolyFamily, Sample};
+use lssi_core::{Channels, Config, Identifier, IdentifierSlot, LibraryConfig, PolyFamily, Sample};
 use lssi_firmware::CHANNELS;
 use lssi_firmware::cost::Meter;
+use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{platform, stack};
 
 /// Window capacity (samples).
@@ -43,6 +48,8 @@ pub const WINDOW_CAPACITY: usize = 256;
 pub const TERMS: usize = 16;
 /// The identifier benchmarked: ring buffers for the firmware's [`CHANNELS`] (x and v).
 pub type Id = Identifier<f32, WINDOW_CAPACITY, TERMS, CHANNELS>;
+/// Its storage.
+type Slot = IdentifierSlot<f32, WINDOW_CAPACITY, TERMS, CHANNELS>;
 
 /// Samples streamed: three screenings' worth.
 const SAMPLES: u32 = 30_000;
@@ -235,19 +242,23 @@ fn print_model(id: &Id) {
     }
 }
 
-/// The identifier, in `.bss` like the device's.
+/// Where the identifier lives: an empty slot in `.bss` (see [`TakeOnce`]), as in the device.
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.SLOT")]
+static SLOT: TakeOnce<Slot> = TakeOnce::new(Slot::new());
+
+/// The identifier, configured in place in its static slot as the device configures its own
+/// (lssi-device's `Configure`).
 fn place(meter: &mut Meter) -> &'static mut Id {
+    let Some(slot) = SLOT.take().map(black_box) else {
+        defmt::error!("bench-id: the identifier's slot was already taken");
+        platform::exit(platform::EXIT_PANIC)
+    };
     let depth = stack::used_now();
     stack::repaint();
-    let (placed, cost) = meter.measure(|| {
-        let config = config();
-        match Id::new(config) {
-            Ok(id) => cortex_m::singleton!(: Id = id),
-            Err(_) => None,
-        }
-    });
-    let construction_stack = stack::peak_used().saturating_sub(depth);
-    let Some(id) = placed else {
+    let (configured, cost) = meter.measure(|| slot.configure(black_box(config())).is_ok());
+    let configure_stack = stack::peak_used().saturating_sub(depth);
+    let (true, Some(id)) = (configured, slot.get_mut()) else {
         defmt::error!("bench-id: the configuration was refused");
         platform::exit(platform::EXIT_PANIC)
     };
@@ -255,9 +266,24 @@ fn place(meter: &mut Meter) -> &'static mut Id {
         "bench-id size_of_identifier {=usize}",
         core::mem::size_of::<Id>()
     );
-    defmt::info!("bench-id new_cost {=u32}", cost);
-    defmt::info!("bench-id new_stack {=usize}", construction_stack);
+    defmt::info!("bench-id configure_cost {=u32}", cost);
+    defmt::info!("bench-id configure_stack {=usize}", configure_stack);
     id
+}
+
+/// Configures the used identifier anew in place (what a second `Configure` or a `Reset`
+/// does on the device) and prints the stack and cost of that.
+fn replace_config(meter: &mut Meter, id: &mut Id) {
+    let depth = stack::used_now();
+    stack::repaint();
+    let (configured, cost) = meter.measure(|| id.reconfigure(black_box(config())).is_ok());
+    let reconfigure_stack = stack::peak_used().saturating_sub(depth);
+    if !configured {
+        defmt::error!("bench-id: the configuration was refused");
+        platform::exit(platform::EXIT_PANIC)
+    }
+    defmt::info!("bench-id reconfigure_cost {=u32}", cost);
+    defmt::info!("bench-id reconfigure_stack {=usize}", reconfigure_stack);
 }
 
 /// Streams the signal through the identifier, timing every push.
@@ -329,6 +355,7 @@ fn stream(meter: &mut Meter) {
         c.screenings
     );
     print_model(id);
+    replace_config(meter, id);
 }
 
 /// The same stream, the identifier left out (the size baseline).
