@@ -129,6 +129,9 @@ pub enum ConfigError {
         /// Ring buffers the identifier has (its `C`).
         capacity: usize,
     },
+    /// `noise_correction` is on, but lssi-core was built without its `noise-correction`
+    /// feature (the firmware leaves it out: 3.5 KB of flash).
+    NoiseCorrectionUnavailable,
 }
 
 impl fmt::Display for ConfigError {
@@ -153,6 +156,9 @@ impl fmt::Display for ConfigError {
                 f,
                 "the samples carry {channels} channels (x, and v and u when measured), but this identifier was built with ring buffers for {capacity}"
             ),
+            ConfigError::NoiseCorrectionUnavailable => f.write_str(
+                "noise_correction is on, but this build of lssi-core has no `noise-correction` feature",
+            ),
         }
     }
 }
@@ -171,6 +177,9 @@ impl Config {
     pub fn validate<const W: usize, const P: usize, const C: usize>(
         &self,
     ) -> Result<(), ConfigError> {
+        if self.noise_correction && !cfg!(feature = "noise-correction") {
+            return Err(ConfigError::NoiseCorrectionUnavailable);
+        }
         if !(self.sample_period.is_finite() && self.sample_period > 0.0) {
             return Err(ConfigError::SamplePeriod(self.sample_period));
         }
@@ -216,5 +225,28 @@ impl Config {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The correction is refused by a build without it, with a sentence that says so, and
+    /// accepted by one with it.
+    #[test]
+    fn noise_correction_needs_its_feature() {
+        let config = Config {
+            noise_correction: true,
+            ..Config::default()
+        };
+        let result = config.validate::<256, 16, 3>();
+        if cfg!(feature = "noise-correction") {
+            assert_eq!(result, Ok(()));
+        } else {
+            assert_eq!(result, Err(ConfigError::NoiseCorrectionUnavailable));
+            let text = std::format!("{}", ConfigError::NoiseCorrectionUnavailable);
+            assert!(text.contains("noise-correction"), "{text}");
+        }
     }
 }

@@ -28,6 +28,7 @@
 
 use crate::config::{Channels, Config};
 use crate::derivative::{Design, FoldedTaps};
+#[cfg(feature = "noise-correction")]
 use crate::eiv;
 use crate::factor::Factor;
 use crate::library::{Library, LibraryConfig, PolyFamily, Term};
@@ -217,8 +218,10 @@ pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 
     /// ‖h‖² of the filters that make x̂ and v̂ from the raw channels.
     gains: (T, T),
     /// h·h' of the filters that make x̂ and ŷ, and v̂ and ŷ (0 for different channels).
+    #[cfg_attr(not(feature = "noise-correction"), allow(dead_code))]
     cross: (T, T),
     /// RMS of x̂ and v̂ over the warm-up: the units of the scaled columns.
+    #[cfg_attr(not(feature = "noise-correction"), allow(dead_code))]
     state_scales: (T, T),
     /// Σx̂², Σv̂² over the same rows as `d4`.
     power: (T, T),
@@ -1068,22 +1071,23 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             w.all.transform(&w.m);
         }
         // Last, in the coordinates the sweep will use: the noise of x̂ and v̂ out.
-        if !self.config.noise_correction {
-            return;
+        #[cfg(feature = "noise-correction")]
+        if self.config.noise_correction {
+            let noise = self.row_noise();
+            let terms = self.library.terms();
+            if halves {
+                eiv::correct(&mut w.a, terms, &noise, &mut w.m);
+                eiv::correct(&mut w.b, terms, &noise, &mut w.m);
+            }
+            eiv::correct(&mut w.all, terms, &noise, &mut w.m);
         }
-        let noise = self.row_noise();
-        let terms = self.library.terms();
-        if halves {
-            eiv::correct(&mut w.a, terms, &noise, &mut w.m);
-            eiv::correct(&mut w.b, terms, &noise, &mut w.m);
-        }
-        eiv::correct(&mut w.all, terms, &noise, &mut w.m);
     }
 
     /// The noise covariances of a row's x̂, v̂ and ŷ in the factors' scaled units, from the
     /// raw channels' white-noise variance (fourth differences) through the filters. A
     /// channel whose k-neighbour smoothing is applied has no known noise left: its terms
     /// are 0 (see `eiv`).
+    #[cfg(feature = "noise-correction")]
     fn row_noise(&self) -> eiv::RowNoise<T> {
         let (sx, sv, n) = self.d4;
         if n <= T::ZERO {

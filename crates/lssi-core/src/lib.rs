@@ -13,6 +13,7 @@
 
 pub mod config;
 pub mod derivative;
+#[cfg(feature = "noise-correction")]
 mod eiv;
 pub mod factor;
 pub mod identifier;
