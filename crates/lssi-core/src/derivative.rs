@@ -244,7 +244,7 @@ impl<T: Real, const W: usize> Taps<T, W> {
         acc
     }
 
-    /// Σ_k taps_i[k] · taps_j[k + lag]: the covariance, per unit white-noise variance, of the
+    /// `Σ_k taps_i[k] · taps_j[k + lag]`: the covariance, per unit white-noise variance, of the
     /// two estimates taken `lag` samples apart.
     pub fn cross(&self, i: usize, j: usize, lag: isize) -> f64 {
         let (a, b) = (self.taps(i), self.taps(j));
@@ -262,8 +262,8 @@ impl<T: Real, const W: usize> Taps<T, W> {
 /// [`Taps`] folded by their symmetry, in two thirds of the memory and half the multiplies.
 ///
 /// A Savitzky–Golay window is symmetric about its centre: the taps of the value and of the
-/// second derivative are even (h[k] = h[N−1−k]), those of the first derivative odd
-/// (h[k] = −h[N−1−k], and 0 at the centre). So Σ h[k]·s[k] = Σ_{k<N/2} h[k]·(s[k] ± s[N−1−k])
+/// second derivative are even (`h[k] = h[N−1−k]`), those of the first derivative odd
+/// (`h[k] = −h[N−1−k]`, and 0 at the centre). So `Σ h[k]·s[k] = Σ_{k<N/2} h[k]·(s[k] ± s[N−1−k])`
 /// (+ the centre tap once when N is odd): one multiply per pair of samples. Only the first
 /// ⌈N/2⌉ taps of each order are stored, averaged with their mirror images so that the
 /// rounding of the f64 design does not break the symmetry; the three halves fit in two rows
