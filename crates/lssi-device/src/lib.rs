@@ -108,9 +108,9 @@ use core::cmp::Ordering;
 use lssi_core::{Config, Identifier, IdentifierSlot, Sample};
 pub use lssi_proto::CostUnit;
 use lssi_proto::{
-    CONTROL_SEQ, DeviceMsg, Error, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
-    MAX_LOG, MAX_TERMS, NakReason, PROTOCOL_VERSION, SampleBatch, SnapshotCause, WireConfig,
-    encode,
+    BatchRef, CONTROL_SEQ, DeviceMsg, Error, HostCommand, MAX_BATCH, MAX_FRAME_LEN,
+    MAX_HOST_FRAME_LEN, MAX_LOG, MAX_TERMS, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig,
+    decode_host_frame, encode,
 };
 
 /// Logs with defmt when the `defmt` feature is on; compiles to nothing otherwise.
@@ -270,8 +270,16 @@ pub struct Device<
     const P: usize = DEFAULT_TERMS,
     const C: usize = DEFAULT_CHANNELS,
 > {
-    decoder: HostFrameDecoder,
-    tx: [u8; MAX_DEVICE_FRAME_LEN],
+    /// The link's one frame buffer, for both directions: a received frame accumulates in
+    /// its first [`MAX_HOST_FRAME_LEN`] bytes and is decoded in place there (a batch's
+    /// samples are read from it as they are pushed); once it is handled, the replies are
+    /// encoded into the whole buffer. Log frames, sent between polls while a frame may be
+    /// half received, are encoded into the bytes past [`MAX_HOST_FRAME_LEN`].
+    buffer: [u8; MAX_FRAME_LEN],
+    /// Bytes of the frame being received.
+    received: usize,
+    /// Skipping the rest of an overlong frame, up to the next `0x00`.
+    skipping: bool,
     /// Configured in place: the identifier never exists on the stack.
     identifier: IdentifierSlot<f32, W, P, C>,
     next_seq: u32,
@@ -303,8 +311,9 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         #[allow(clippy::let_unit_value, reason = "forces the compile-time check")]
         let () = Self::CAPACITIES_FIT;
         Self {
-            decoder: HostFrameDecoder::new(),
-            tx: [0; MAX_DEVICE_FRAME_LEN],
+            buffer: [0; MAX_FRAME_LEN],
+            received: 0,
+            skipping: false,
             identifier: IdentifierSlot::new(),
             next_seq: 0,
             dirty: false,
@@ -348,8 +357,23 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         meter: &mut M,
     ) -> Result<(), L::Error> {
         for &byte in bytes {
-            if let Some(result) = self.decoder.push::<HostMsg>(byte) {
-                self.handle(result, link, meter)?;
+            // `lssi_proto::HostFrameDecoder::push`, with the frame decoded in place.
+            if byte == 0 {
+                let len = core::mem::replace(&mut self.received, 0);
+                if !core::mem::replace(&mut self.skipping, false) && len > 0 {
+                    self.handle(len, link, meter)?;
+                }
+            } else if self.skipping {
+            } else if self.received < MAX_HOST_FRAME_LEN
+                && let Some(slot) = self.buffer.get_mut(self.received)
+            {
+                *slot = byte;
+                self.received += 1;
+            } else {
+                // Longer than any host frame: dropped like a bad CRC.
+                self.received = 0;
+                self.skipping = true;
+                self.stats.crc_errors = self.stats.crc_errors.wrapping_add(1);
             }
         }
         Ok(())
@@ -358,10 +382,17 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
     /// Sends raw defmt bytes (what the platform's defmt logger produced, in order) as
     /// [`DeviceMsg::Log`] frames of at most [`MAX_LOG`] bytes; the host concatenates their
     /// contents into one defmt stream.
+    ///
+    /// Safe to call between polls while a frame is half received: a log frame is encoded
+    /// past the receive part of the link buffer.
+    #[inline(never)]
     pub fn send_log<L: Transport>(&mut self, link: &mut L, bytes: &[u8]) -> Result<(), L::Error> {
+        let out = self.buffer.get_mut(MAX_HOST_FRAME_LEN..).unwrap_or(&mut []);
         for chunk in bytes.chunks(MAX_LOG) {
-            if let Ok(bytes) = heapless::Vec::from_slice(chunk) {
-                self.send(link, &DeviceMsg::Log { bytes })?;
+            if let Ok(bytes) = heapless::Vec::from_slice(chunk)
+                && let Ok(len) = encode(&DeviceMsg::Log { bytes }, out)
+            {
+                link.write(out.get(..len).unwrap_or(&[]))?;
             }
         }
         Ok(())
@@ -416,31 +447,50 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
+    /// Handles the frame of `len` bytes in the buffer: decodes it in place, runs the
+    /// command and sends the replies (into the same buffer, the frame being done with).
     fn handle<L: Transport, M: CostMeter>(
         &mut self,
-        result: Result<HostMsg, Error>,
+        len: usize,
         link: &mut L,
         meter: &mut M,
     ) -> Result<(), L::Error> {
-        let message = match result {
-            Ok(message) => {
+        let frame = self.buffer.get_mut(..len).unwrap_or(&mut []);
+        let command = match decode_host_frame(frame) {
+            Ok(HostCommand::Samples(batch)) => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
-                message
+                // The samples are pushed straight from the frame's bytes; the replies are
+                // sent once they are done with.
+                let outcome = Self::apply(
+                    &mut self.identifier,
+                    &mut self.next_seq,
+                    &mut self.dirty,
+                    &mut self.stats,
+                    batch,
+                    meter,
+                );
+                return self.batch_replies(outcome, link);
+            }
+            Ok(command) => {
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                match command {
+                    HostCommand::Configure(config) => Command::Configure(config),
+                    HostCommand::Query => Command::Query,
+                    HostCommand::Reset => Command::Reset,
+                    // `Samples` is handled above.
+                    HostCommand::Hello { .. } | HostCommand::Samples(_) => Command::Hello,
+                }
             }
             Err(Error::VersionMismatch { theirs, .. }) => {
                 // The README's advice: answer with our version; the host reports the mismatch.
                 log!(warn, "host speaks protocol version {=u16}", theirs);
                 let _ = theirs;
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
-                return self.send(link, &self.hello_reply());
+                Command::Hello
             }
             Err(Error::Decode) => {
                 self.stats.decode_errors = self.stats.decode_errors.wrapping_add(1);
-                let nak = DeviceMsg::Nak {
-                    seq: self.next_seq,
-                    reason: NakReason::Decode,
-                };
-                return self.send(link, &nak);
+                return self.nak(link, self.next_seq, NakReason::Decode);
             }
             Err(_) => {
                 // COBS, CRC, overflow: the frame cannot be attributed; the host resends.
@@ -448,12 +498,11 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 return Ok(());
             }
         };
-        match message {
-            HostMsg::Hello { .. } => self.send(link, &self.hello_reply()),
-            HostMsg::Configure(config) => self.configure(&config, link),
-            HostMsg::Samples(batch) => self.samples(&batch, link, meter),
-            HostMsg::Query => self.query(link, meter),
-            HostMsg::Reset => self.reset(link),
+        match command {
+            Command::Hello => self.send_hello(link),
+            Command::Configure(config) => self.configure(&config, link),
+            Command::Query => self.query(link, meter),
+            Command::Reset => self.reset(link),
         }
     }
 
@@ -467,6 +516,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
+    /// Out of line: the configuration's conversion is not in the main loop's frame.
+    #[inline(never)]
     fn configure<L: Transport>(
         &mut self,
         config: &WireConfig,
@@ -480,19 +531,13 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             Ok(_) => {
                 log!(info, "configured: {}", config);
                 self.restarted();
-                self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
+                self.ack(link, CONTROL_SEQ)
             }
             Err(error) => {
                 #[cfg(feature = "defmt")]
                 defmt::warn!("configuration refused: {}", defmt::Display2Format(&error));
                 let _ = error;
-                self.send(
-                    link,
-                    &DeviceMsg::Nak {
-                        seq: CONTROL_SEQ,
-                        reason: NakReason::BadConfig,
-                    },
-                )
+                self.nak(link, CONTROL_SEQ, NakReason::BadConfig)
             }
         }
     }
@@ -510,49 +555,39 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             .identifier
             .get_mut()
             .map(|id| id.reconfigure(*id.config()));
-        let reply = match rebuilt {
+        match rebuilt {
             Some(Ok(())) => {
                 log!(info, "reset");
                 self.restarted();
-                DeviceMsg::Ack { seq: CONTROL_SEQ }
+                self.ack(link, CONTROL_SEQ)
             }
             // A configuration that built once builds again; refused like no configuration.
-            Some(Err(_)) | None => DeviceMsg::Nak {
-                seq: CONTROL_SEQ,
-                reason: NakReason::NotConfigured,
-            },
-        };
-        self.send(link, &reply)
+            Some(Err(_)) | None => self.nak(link, CONTROL_SEQ, NakReason::NotConfigured),
+        }
     }
 
-    fn samples<L: Transport, M: CostMeter>(
-        &mut self,
-        batch: &SampleBatch,
-        link: &mut L,
+    /// Applies a sample batch read in place (exactly once, in `seq` order) and says what
+    /// to reply. Holds no frame or message of its own: the scheduled screening runs under it.
+    fn apply<M: CostMeter>(
+        identifier: &mut IdentifierSlot<f32, W, P, C>,
+        next_seq: &mut u32,
+        dirty: &mut bool,
+        stats: &mut Stats,
+        batch: BatchRef<'_>,
         meter: &mut M,
-    ) -> Result<(), L::Error> {
-        let Some(identifier) = self.identifier.get_mut() else {
-            let nak = DeviceMsg::Nak {
-                seq: batch.seq,
-                reason: NakReason::NotConfigured,
-            };
-            return self.send(link, &nak);
+    ) -> BatchOutcome {
+        let Some(identifier) = identifier.get_mut() else {
+            return BatchOutcome::NotConfigured(batch.seq);
         };
-        match batch.seq.cmp(&self.next_seq) {
+        match batch.seq.cmp(next_seq) {
             Ordering::Less => {
-                self.stats.duplicates = self.stats.duplicates.wrapping_add(1);
-                self.send(link, &DeviceMsg::Ack { seq: batch.seq })
+                stats.duplicates = stats.duplicates.wrapping_add(1);
+                BatchOutcome::Duplicate(batch.seq)
             }
-            Ordering::Greater => {
-                let nak = DeviceMsg::Nak {
-                    seq: self.next_seq,
-                    reason: NakReason::OutOfOrder,
-                };
-                self.send(link, &nak)
-            }
+            Ordering::Greater => BatchOutcome::OutOfOrder,
             Ordering::Equal => {
                 let mut screened = false;
-                for s in batch {
+                for s in batch.iter() {
                     let sample = Sample {
                         t: s.t,
                         x: s.x,
@@ -560,19 +595,38 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                         u: s.u,
                     };
                     let (result, cost) = meter.measure(|| identifier.push(sample));
-                    self.dirty = true;
+                    *dirty = true;
                     if result == Ok(true) {
                         // The push ran the scheduled screening: its cost is a screening's.
-                        self.stats.record_screening(cost);
-                        self.dirty = false;
+                        stats.record_screening(cost);
+                        *dirty = false;
                         screened = true;
                     } else {
-                        self.stats.record_sample(cost);
+                        stats.record_sample(cost);
                     }
                 }
                 // Saturates at CONTROL_SEQ, 4·10⁹ batches away: batches past it are naked.
-                self.next_seq = self.next_seq.saturating_add(1);
-                self.send(link, &DeviceMsg::Ack { seq: batch.seq })?;
+                *next_seq = next_seq.saturating_add(1);
+                BatchOutcome::Applied {
+                    seq: batch.seq,
+                    screened,
+                }
+            }
+        }
+    }
+
+    /// The replies to a sample batch, once applied.
+    fn batch_replies<L: Transport>(
+        &mut self,
+        outcome: BatchOutcome,
+        link: &mut L,
+    ) -> Result<(), L::Error> {
+        match outcome {
+            BatchOutcome::NotConfigured(seq) => self.nak(link, seq, NakReason::NotConfigured),
+            BatchOutcome::Duplicate(seq) => self.ack(link, seq),
+            BatchOutcome::OutOfOrder => self.nak(link, self.next_seq, NakReason::OutOfOrder),
+            BatchOutcome::Applied { seq, screened } => {
+                self.ack(link, seq)?;
                 if screened {
                     log!(debug, "scheduled screening");
                     self.send_model(link, SnapshotCause::Scheduled)?;
@@ -588,11 +642,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         meter: &mut M,
     ) -> Result<(), L::Error> {
         let Some(identifier) = self.identifier.get_mut() else {
-            let nak = DeviceMsg::Nak {
-                seq: CONTROL_SEQ,
-                reason: NakReason::NotConfigured,
-            };
-            return self.send(link, &nak);
+            return self.nak(link, CONTROL_SEQ, NakReason::NotConfigured);
         };
         if self.dirty {
             let (ran, cost) = meter.measure(|| identifier.screen());
@@ -602,10 +652,43 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             self.dirty = false;
         }
         self.send_model(link, SnapshotCause::Query)?;
-        self.send(link, &self.health(meter.unit()))
+        self.send_health(link, meter.unit())
     }
 
-    /// Sends the identifier's current model, if it has one.
+    /// Sends `Ack { seq }`. Out of line, like every send: a [`DeviceMsg`] is as large as its
+    /// largest variant (a snapshot, 0.6 KiB), and none may sit in the main loop's frame,
+    /// under the screening.
+    #[inline(never)]
+    fn ack<L: Transport>(&mut self, link: &mut L, seq: u32) -> Result<(), L::Error> {
+        self.send(link, &DeviceMsg::Ack { seq })
+    }
+
+    /// Sends `Nak { seq, reason }` (out of line, see [`Device::ack`]).
+    #[inline(never)]
+    fn nak<L: Transport>(
+        &mut self,
+        link: &mut L,
+        seq: u32,
+        reason: NakReason,
+    ) -> Result<(), L::Error> {
+        self.send(link, &DeviceMsg::Nak { seq, reason })
+    }
+
+    /// Sends `HelloReply` (out of line, see [`Device::ack`]).
+    #[inline(never)]
+    fn send_hello<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+        self.send(link, &self.hello_reply())
+    }
+
+    /// Sends [`Device::health`] (its own frame: not under a screening).
+    #[inline(never)]
+    fn send_health<L: Transport>(&mut self, link: &mut L, unit: CostUnit) -> Result<(), L::Error> {
+        self.send(link, &self.health(unit))
+    }
+
+    /// Sends the identifier's current model, if it has one (its own frame: the snapshot is
+    /// not under a screening).
+    #[inline(never)]
     fn send_model<L: Transport>(
         &mut self,
         link: &mut L,
@@ -622,12 +705,39 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
-    /// Frames `message` into the transmit buffer and writes it.
+    /// Frames `message` into the link buffer and writes it. Only between frames: the
+    /// frame received last has been handled.
     fn send<L: Transport>(&mut self, link: &mut L, message: &DeviceMsg) -> Result<(), L::Error> {
         // Cannot fail: the buffer holds the longest device frame.
-        let Ok(len) = encode(message, &mut self.tx) else {
+        let Ok(len) = encode(message, &mut self.buffer) else {
             return Ok(());
         };
-        link.write(self.tx.get(..len).unwrap_or(&[]))
+        link.write(self.buffer.get(..len).unwrap_or(&[]))
     }
 }
+
+/// A decoded command other than a sample batch: a copy, so the frame's bytes are free for
+/// the replies.
+enum Command {
+    Hello,
+    Configure(WireConfig),
+    Query,
+    Reset,
+}
+
+/// What became of a sample batch.
+#[derive(Clone, Copy)]
+enum BatchOutcome {
+    /// No configuration yet: naked with its `seq`.
+    NotConfigured(u32),
+    /// Applied before: acked again.
+    Duplicate(u32),
+    /// A batch was lost before it: naked with the next expected `seq`.
+    OutOfOrder,
+    /// Applied now; `screened` when a scheduled screening ran during it.
+    Applied { seq: u32, screened: bool },
+}
+
+/// A log frame fits in the link buffer past the receive part.
+const _: () =
+    assert!(MAX_FRAME_LEN - MAX_HOST_FRAME_LEN >= lssi_proto::size::frame_len(1 + 1 + MAX_LOG));

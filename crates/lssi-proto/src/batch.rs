@@ -134,6 +134,211 @@ impl MaxSize for Channels {
     const POSTCARD_MAX_SIZE: usize = 1;
 }
 
+/// A sample batch read in place from a decoded frame ([`crate::decode_host_frame`]): its
+/// sequence number and channels, and its samples as the wire bytes, decoded one at a time as
+/// they are iterated. The same samples, bit for bit, as the [`SampleBatch`] that
+/// [`crate::decode_frame`] would build from the frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BatchRef<'a> {
+    /// Sequence number of the batch.
+    pub seq: u32,
+    channels: Channels,
+    /// `len · channels.bytes_per_sample()` bytes, checked by postcard.
+    samples: &'a [u8],
+}
+
+impl<'a> BatchRef<'a> {
+    pub(crate) const fn new(seq: u32, channels: Channels, samples: &'a [u8]) -> Self {
+        Self {
+            seq,
+            channels,
+            samples,
+        }
+    }
+
+    /// The channels every sample carries.
+    pub const fn channels(&self) -> Channels {
+        self.channels
+    }
+
+    /// Number of samples.
+    pub const fn len(&self) -> usize {
+        self.samples.len() / self.channels.bytes_per_sample()
+    }
+
+    /// Whether there are no samples.
+    pub const fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// The samples in order, decoded from the bytes as they come.
+    pub fn iter(&self) -> BatchSamples<'a> {
+        BatchSamples {
+            channels: self.channels,
+            bytes: self.samples,
+        }
+    }
+
+    /// The same batch as a [`SampleBatch`] (a copy).
+    pub fn to_batch(&self) -> SampleBatch {
+        let mut batch = SampleBatch::new(self.seq, self.channels);
+        for sample in self.iter() {
+            // Cannot fail: at most MAX_BATCH samples of the batch's channels.
+            let _ = batch.push(sample);
+        }
+        batch
+    }
+}
+
+impl<'a> IntoIterator for &BatchRef<'a> {
+    type Item = WireSample;
+    type IntoIter = BatchSamples<'a>;
+
+    fn into_iter(self) -> BatchSamples<'a> {
+        self.iter()
+    }
+}
+
+/// The samples of a [`BatchRef`], in order.
+#[derive(Clone, Debug)]
+pub struct BatchSamples<'a> {
+    channels: Channels,
+    bytes: &'a [u8],
+}
+
+impl BatchSamples<'_> {
+    /// The next `N` bytes (postcard writes f64 and f32 as their little-endian bytes).
+    fn take<const N: usize>(&mut self) -> [u8; N] {
+        match self.bytes.split_first_chunk::<N>() {
+            Some((head, rest)) => {
+                self.bytes = rest;
+                *head
+            }
+            None => {
+                self.bytes = &[];
+                [0; N]
+            }
+        }
+    }
+}
+
+impl Iterator for BatchSamples<'_> {
+    type Item = WireSample;
+
+    fn next(&mut self) -> Option<WireSample> {
+        if self.bytes.len() < self.channels.bytes_per_sample() {
+            return None;
+        }
+        let t = f64::from_le_bytes(self.take());
+        let x = f32::from_le_bytes(self.take());
+        let v = self
+            .channels
+            .has_v()
+            .then(|| f32::from_le_bytes(self.take()));
+        let u = self
+            .channels
+            .has_u()
+            .then(|| f32::from_le_bytes(self.take()));
+        Some(WireSample { t, x, v, u })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = self.bytes.len() / self.channels.bytes_per_sample();
+        (n, Some(n))
+    }
+}
+
+impl ExactSizeIterator for BatchSamples<'_> {}
+
+impl core::iter::FusedIterator for BatchSamples<'_> {}
+
+/// A [`SampleBatch`] as postcard reads it with its samples checked and counted, not stored
+/// (for [`crate::decode_host_frame`]): the same checks, so the same frames decode.
+pub(crate) struct BatchHeader {
+    pub(crate) seq: u32,
+    pub(crate) channels: Channels,
+    pub(crate) len: usize,
+}
+
+impl<'de> Deserialize<'de> for BatchHeader {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_struct(
+            "SampleBatch",
+            &["seq", "channels", "samples"],
+            HeaderVisitor,
+        )
+    }
+}
+
+struct HeaderVisitor;
+
+impl<'de> Visitor<'de> for HeaderVisitor {
+    type Value = BatchHeader;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        BatchVisitor.expecting(f)
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut fields: A) -> Result<BatchHeader, A::Error> {
+        let seq = fields
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+        let channels: Channels = fields
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+        let len = fields
+            .next_element_seed(CountIn { channels })?
+            .ok_or_else(|| de::Error::invalid_length(2, &self))?;
+        Ok(BatchHeader { seq, channels, len })
+    }
+}
+
+/// [`RecordsIn`] without the records: the same checks, only the count kept.
+#[derive(Clone, Copy)]
+struct CountIn {
+    channels: Channels,
+}
+
+impl<'de> DeserializeSeed<'de> for CountIn {
+    type Value = usize;
+
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<usize, D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for CountIn {
+    type Value = usize;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        RecordsIn {
+            channels: self.channels,
+        }
+        .expecting(f)
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut samples: A) -> Result<usize, A::Error> {
+        if let Some(count) = samples.size_hint()
+            && count > MAX_BATCH
+        {
+            return Err(de::Error::invalid_length(count, &self));
+        }
+        let mut len = 0;
+        while samples
+            .next_element_seed(RecordIn {
+                channels: self.channels,
+            })?
+            .is_some()
+        {
+            if len == MAX_BATCH {
+                return Err(de::Error::invalid_length(MAX_BATCH + 1, &self));
+            }
+            len += 1;
+        }
+        Ok(len)
+    }
+}
+
 /// A sample as the batch stores it: absent channels hold 0.0 and are not sent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -15,11 +15,16 @@
 //! assert_eq!(frames.next(), None);
 //! ```
 
-use crate::{CRC_LEN, DeviceMsg, Error, HostMsg, Message, PROTOCOL_VERSION};
+use crate::batch::BatchHeader;
+use crate::{
+    BatchRef, CRC_LEN, DeviceMsg, Error, HostCommand, HostMsg, Message, PROTOCOL_VERSION,
+    WireConfig,
+};
 use core::marker::PhantomData;
 use crc::{CRC_32_ISCSI, Crc};
 use postcard::ser_flavors::crc::CrcModifier;
 use postcard::ser_flavors::{Cobs, Slice};
+use serde::Deserialize;
 
 /// CRC-32C (Castagnoli; the iSCSI parameters), table-driven: 1 KiB of flash.
 static CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
@@ -73,6 +78,45 @@ pub fn write_frame<T: Message, W: std::io::Write>(
 /// [`Error::VersionMismatch`], whatever follows it), then postcard, which must consume the
 /// payload exactly. `frame` is left holding the decoded bytes.
 pub fn decode_frame<T: Message>(frame: &mut [u8]) -> Result<T, Error> {
+    let payload = checked_payload(frame)?;
+    match postcard::take_from_bytes::<T>(payload) {
+        Ok((message, [])) => Ok(message),
+        _ => Err(Error::Decode),
+    }
+}
+
+/// [`decode_frame`] for a [`HostMsg`], in place: the same checks, the same errors, but a
+/// sample batch's samples are not copied out of `frame` ([`HostCommand::Samples`] reads them
+/// from its bytes), so the result is a few dozen bytes instead of a whole [`HostMsg`].
+///
+/// For every input, `decode_host_frame` succeeds exactly when `decode_frame::<HostMsg>`
+/// does, with the same message.
+pub fn decode_host_frame(frame: &mut [u8]) -> Result<HostCommand<'_>, Error> {
+    let payload = checked_payload(frame)?;
+    let Ok((shape, [])) = postcard::take_from_bytes::<HostShape>(payload) else {
+        return Err(Error::Decode);
+    };
+    Ok(match shape {
+        HostShape::Hello { protocol_version } => HostCommand::Hello { protocol_version },
+        HostShape::Configure(config) => HostCommand::Configure(config),
+        HostShape::Samples(header) => {
+            // The samples end the payload (postcard consumed it exactly) and have a fixed
+            // width, so they are its last `len · bytes_per_sample` bytes.
+            let samples = header
+                .len
+                .checked_mul(header.channels.bytes_per_sample())
+                .and_then(|n| payload.len().checked_sub(n))
+                .and_then(|start| payload.get(start..))
+                .ok_or(Error::Decode)?;
+            HostCommand::Samples(BatchRef::new(header.seq, header.channels, samples))
+        }
+        HostShape::Query => HostCommand::Query,
+        HostShape::Reset => HostCommand::Reset,
+    })
+}
+
+/// The checks both decoders share; returns the postcard payload (CRC stripped).
+fn checked_payload(frame: &mut [u8]) -> Result<&[u8], Error> {
     let len = cobs::decode_in_place(frame).map_err(|_| Error::Cobs)?;
     let decoded = frame.get(..len).ok_or(Error::Cobs)?;
     let split = decoded.len().checked_sub(CRC_LEN).ok_or(Error::Crc)?;
@@ -90,10 +134,19 @@ pub fn decode_frame<T: Message>(frame: &mut [u8]) -> Result<T, Error> {
             theirs,
         });
     }
-    match postcard::take_from_bytes::<T>(payload) {
-        Ok((message, [])) => Ok(message),
-        _ => Err(Error::Decode),
-    }
+    Ok(payload)
+}
+
+/// [`HostMsg`]'s wire shape with a batch's samples checked and counted, not stored: the
+/// same variants in the same order, so postcard accepts exactly what it accepts for
+/// [`HostMsg`].
+#[derive(Deserialize)]
+enum HostShape {
+    Hello { protocol_version: u16 },
+    Configure(WireConfig),
+    Samples(BatchHeader),
+    Query,
+    Reset,
 }
 
 /// Reassembles frames from a byte stream cut into any chunks, with an `N`-byte buffer.

@@ -1,6 +1,6 @@
 //! Host → device messages.
 
-use crate::SampleBatch;
+use crate::{BatchRef, SampleBatch};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
@@ -29,6 +29,39 @@ pub enum HostMsg {
     Query,
     /// Drops the identifier's state; the configuration stays.
     Reset,
+}
+
+/// A [`HostMsg`] decoded in place by [`decode_host_frame`](crate::decode_host_frame): a
+/// sample batch stays in the received frame's bytes ([`BatchRef`]) instead of being copied
+/// into a [`SampleBatch`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HostCommand<'a> {
+    /// [`HostMsg::Hello`].
+    Hello {
+        /// The host's [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
+        protocol_version: u16,
+    },
+    /// [`HostMsg::Configure`].
+    Configure(WireConfig),
+    /// [`HostMsg::Samples`], read from the frame's bytes.
+    Samples(BatchRef<'a>),
+    /// [`HostMsg::Query`].
+    Query,
+    /// [`HostMsg::Reset`].
+    Reset,
+}
+
+impl HostCommand<'_> {
+    /// The same message as a [`HostMsg`] (copies a batch's samples out).
+    pub fn to_msg(&self) -> HostMsg {
+        match *self {
+            HostCommand::Hello { protocol_version } => HostMsg::Hello { protocol_version },
+            HostCommand::Configure(config) => HostMsg::Configure(config),
+            HostCommand::Samples(batch) => HostMsg::Samples(batch.to_batch()),
+            HostCommand::Query => HostMsg::Query,
+            HostCommand::Reset => HostMsg::Reset,
+        }
+    }
 }
 
 /// Which monomials of (x, v) enter the library (the names of `lssi_core::PolyFamily`).

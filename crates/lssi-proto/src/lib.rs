@@ -49,7 +49,7 @@ mod frame;
 mod host;
 pub mod size;
 
-pub use batch::{Channels, SampleBatch, Samples, WireSample};
+pub use batch::{BatchRef, BatchSamples, Channels, SampleBatch, Samples, WireSample};
 pub use device::{
     CostUnit, DeviceMsg, ModelSnapshot, NakReason, SnapshotCause, SolutionSummary, TermCode,
     TermKind,
@@ -57,8 +57,10 @@ pub use device::{
 pub use error::Error;
 #[cfg(feature = "std")]
 pub use frame::write_frame;
-pub use frame::{FrameDecoder, Frames, decode_frame, encode, encode_device, encode_host};
-pub use host::{HostMsg, PolyFamily, WireConfig};
+pub use frame::{
+    FrameDecoder, Frames, decode_frame, decode_host_frame, encode, encode_device, encode_host,
+};
+pub use host::{HostCommand, HostMsg, PolyFamily, WireConfig};
 /// postcard's worst-case size trait, implemented by every wire type.
 pub use postcard::experimental::max_size::MaxSize;
 
