@@ -23,7 +23,11 @@ fn accepted<T: Message, const N: usize>(bytes: &[u8]) -> Vec<T> {
         .collect()
 }
 
-/// Flips each bit of `original`'s frame in turn; not one flip may be accepted.
+/// Flips each bit of `original`'s frame in turn; not one flip may be accepted as anything
+/// but the original itself. (When the COBS data ends in a zero — a CRC whose last byte is
+/// 0 — the encoder closes the frame with a code byte 0x01 that adds nothing: turning it into
+/// the delimiter ends the same frame one byte early, and the very same message arrives. Found
+/// with `PROPTEST_CASES=30000`: about one frame in 256 ends so, and the flip is bit 0 of it.)
 fn assert_every_bit_flip_rejected<T: Message + std::fmt::Debug, const N: usize>(original: &T) {
     let frame = frame(original);
     let mut mutated = frame.clone();
@@ -32,8 +36,9 @@ fn assert_every_bit_flip_rejected<T: Message + std::fmt::Debug, const N: usize>(
             mutated[index] ^= 1 << bit;
             let accepted = accepted::<T, N>(&mutated);
             assert!(
-                accepted.is_empty(),
-                "flip of bit {bit} of byte {index} accepted: {accepted:?}"
+                // Compared as encoded bytes: random floats include NaN, which is not == itself.
+                accepted.iter().all(|m| common::frame(m) == frame),
+                "flip of bit {bit} of byte {index} accepted as another message: {accepted:?}"
             );
             mutated[index] ^= 1 << bit;
         }
