@@ -741,15 +741,10 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// σ²‖h‖² > √(ε(K)·E[ŝ²]).
     fn adapt_smoothing(&mut self) {
         let keep = T::from_f64(0.5);
-        let (sx, sv, n) = self.d4;
-        if n > T::ZERO {
-            let sigma2 = |sum: T| sum / (T::from_f64(crate::tuning::FOURTH_DIFFERENCE_GAIN) * n);
-            let noise_x = sigma2(sx) * self.gains.0;
-            let noise_v = if self.config.channels.velocity {
-                sigma2(sv) * self.gains.1
-            } else {
-                sigma2(sx) * self.gains.1
-            };
+        if let Some((x2, v2)) = self.raw_noise() {
+            let n = self.d4.2;
+            let noise_x = x2 * self.gains.0;
+            let noise_v = v2 * self.gains.1;
             let decide = |s: &KnnSmoother<T>, noise: T, power: T| {
                 s.mean_error(s.k())
                     .is_some_and(|e| noise > (e * power / n).sqrt())
@@ -761,6 +756,23 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         }
         self.smooth_x.choose_k(keep);
         self.smooth_v.choose_k(keep);
+    }
+
+    /// The white-noise variances of the raw channels that x̂ and v̂ are made from (x, and the
+    /// measured v or x again), from the fourth differences so far; `None` before any row.
+    fn raw_noise(&self) -> Option<(T, T)> {
+        let (sx, sv, n) = self.d4;
+        if n <= T::ZERO {
+            return None;
+        }
+        let sigma2 = |sum: T| sum / (T::from_f64(crate::tuning::FOURTH_DIFFERENCE_GAIN) * n);
+        let x2 = sigma2(sx);
+        let v2 = if self.config.channels.velocity {
+            sigma2(sv)
+        } else {
+            x2
+        };
+        Some((x2, v2))
     }
 
     /// Whether the k-neighbour smoothing is applied to (x̂, v̂) now.
@@ -1089,16 +1101,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// are 0 (see `eiv`).
     #[cfg(feature = "noise-correction")]
     fn row_noise(&self) -> eiv::RowNoise<T> {
-        let (sx, sv, n) = self.d4;
-        if n <= T::ZERO {
+        let Some((x2, v2)) = self.raw_noise() else {
             return eiv::RowNoise::default();
-        }
-        let sigma2 = |sum: T| sum / (T::from_f64(crate::tuning::FOURTH_DIFFERENCE_GAIN) * n);
-        let x2 = sigma2(sx);
-        let v2 = if self.config.channels.velocity {
-            sigma2(sv)
-        } else {
-            x2
         };
         let (ux, uv) = self.state_scales;
         let uy = self.y_scale;

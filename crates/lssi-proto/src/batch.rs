@@ -25,6 +25,7 @@
 use crate::MAX_BATCH;
 use crate::size::varint_len;
 use core::fmt;
+use core::marker::PhantomData;
 use postcard::experimental::max_size::MaxSize;
 use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
 use serde::ser::{SerializeSeq, SerializeStruct, SerializeTuple};
@@ -253,7 +254,7 @@ impl ExactSizeIterator for BatchSamples<'_> {}
 impl core::iter::FusedIterator for BatchSamples<'_> {}
 
 /// A [`SampleBatch`] as postcard reads it with its samples checked and counted, not stored
-/// (for [`crate::decode_host_frame`]): the same checks, so the same frames decode.
+/// (for [`crate::decode_host_frame`]): the same visitor, so the same frames decode.
 pub(crate) struct BatchHeader {
     pub(crate) seq: u32,
     pub(crate) channels: Channels,
@@ -262,80 +263,8 @@ pub(crate) struct BatchHeader {
 
 impl<'de> Deserialize<'de> for BatchHeader {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        deserializer.deserialize_struct(
-            "SampleBatch",
-            &["seq", "channels", "samples"],
-            HeaderVisitor,
-        )
-    }
-}
-
-struct HeaderVisitor;
-
-impl<'de> Visitor<'de> for HeaderVisitor {
-    type Value = BatchHeader;
-
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        BatchVisitor.expecting(f)
-    }
-
-    fn visit_seq<A: SeqAccess<'de>>(self, mut fields: A) -> Result<BatchHeader, A::Error> {
-        let seq = fields
-            .next_element()?
-            .ok_or_else(|| de::Error::invalid_length(0, &self))?;
-        let channels: Channels = fields
-            .next_element()?
-            .ok_or_else(|| de::Error::invalid_length(1, &self))?;
-        let len = fields
-            .next_element_seed(CountIn { channels })?
-            .ok_or_else(|| de::Error::invalid_length(2, &self))?;
+        let (seq, channels, Count(len)) = deserialize_batch(deserializer)?;
         Ok(BatchHeader { seq, channels, len })
-    }
-}
-
-/// [`RecordsIn`] without the records: the same checks, only the count kept.
-#[derive(Clone, Copy)]
-struct CountIn {
-    channels: Channels,
-}
-
-impl<'de> DeserializeSeed<'de> for CountIn {
-    type Value = usize;
-
-    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<usize, D::Error> {
-        deserializer.deserialize_seq(self)
-    }
-}
-
-impl<'de> Visitor<'de> for CountIn {
-    type Value = usize;
-
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        RecordsIn {
-            channels: self.channels,
-        }
-        .expecting(f)
-    }
-
-    fn visit_seq<A: SeqAccess<'de>>(self, mut samples: A) -> Result<usize, A::Error> {
-        if let Some(count) = samples.size_hint()
-            && count > MAX_BATCH
-        {
-            return Err(de::Error::invalid_length(count, &self));
-        }
-        let mut len = 0;
-        while samples
-            .next_element_seed(RecordIn {
-                channels: self.channels,
-            })?
-            .is_some()
-        {
-            if len == MAX_BATCH {
-                return Err(de::Error::invalid_length(MAX_BATCH + 1, &self));
-            }
-            len += 1;
-        }
-        Ok(len)
     }
 }
 
@@ -549,33 +478,7 @@ impl Serialize for RecordOut<'_> {
 
 impl<'de> Deserialize<'de> for SampleBatch {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        deserializer.deserialize_struct(
-            "SampleBatch",
-            &["seq", "channels", "samples"],
-            BatchVisitor,
-        )
-    }
-}
-
-struct BatchVisitor;
-
-impl<'de> Visitor<'de> for BatchVisitor {
-    type Value = SampleBatch;
-
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("a sample batch: sequence number, channel mask, samples")
-    }
-
-    fn visit_seq<A: SeqAccess<'de>>(self, mut fields: A) -> Result<SampleBatch, A::Error> {
-        let seq = fields
-            .next_element()?
-            .ok_or_else(|| de::Error::invalid_length(0, &self))?;
-        let channels: Channels = fields
-            .next_element()?
-            .ok_or_else(|| de::Error::invalid_length(1, &self))?;
-        let records = fields
-            .next_element_seed(RecordsIn { channels })?
-            .ok_or_else(|| de::Error::invalid_length(2, &self))?;
+        let (seq, channels, records) = deserialize_batch(deserializer)?;
         Ok(SampleBatch {
             seq,
             channels,
@@ -584,42 +487,106 @@ impl<'de> Visitor<'de> for BatchVisitor {
     }
 }
 
-#[derive(Clone, Copy)]
-struct RecordsIn {
-    channels: Channels,
+/// Where a batch's records go as postcard reads them: kept ([`SampleBatch`]) or only
+/// counted ([`BatchHeader`]); both go through the one visitor and its checks.
+trait RecordSink: Default {
+    /// Takes one record; false when the batch holds [`MAX_BATCH`] already.
+    fn take(&mut self, record: Record) -> bool;
 }
 
-impl<'de> DeserializeSeed<'de> for RecordsIn {
-    type Value = heapless::Vec<Record, MAX_BATCH>;
+impl RecordSink for heapless::Vec<Record, MAX_BATCH> {
+    fn take(&mut self, record: Record) -> bool {
+        self.push(record).is_ok()
+    }
+}
 
-    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<Self::Value, D::Error> {
+/// A record count, for [`BatchHeader`].
+#[derive(Default)]
+struct Count(usize);
+
+impl RecordSink for Count {
+    fn take(&mut self, _: Record) -> bool {
+        if self.0 == MAX_BATCH {
+            return false;
+        }
+        self.0 += 1;
+        true
+    }
+}
+
+/// Reads a batch's sequence number, channels and records (into `S`).
+fn deserialize_batch<'de, D: Deserializer<'de>, S: RecordSink>(
+    deserializer: D,
+) -> Result<(u32, Channels, S), D::Error> {
+    deserializer.deserialize_struct(
+        "SampleBatch",
+        &["seq", "channels", "samples"],
+        BatchVisitor(PhantomData),
+    )
+}
+
+struct BatchVisitor<S>(PhantomData<S>);
+
+impl<'de, S: RecordSink> Visitor<'de> for BatchVisitor<S> {
+    type Value = (u32, Channels, S);
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a sample batch: sequence number, channel mask, samples")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut fields: A) -> Result<Self::Value, A::Error> {
+        let seq = fields
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+        let channels: Channels = fields
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+        let records = fields
+            .next_element_seed(RecordsIn {
+                channels,
+                sink: PhantomData,
+            })?
+            .ok_or_else(|| de::Error::invalid_length(2, &self))?;
+        Ok((seq, channels, records))
+    }
+}
+
+struct RecordsIn<S> {
+    channels: Channels,
+    sink: PhantomData<S>,
+}
+
+impl<'de, S: RecordSink> DeserializeSeed<'de> for RecordsIn<S> {
+    type Value = S;
+
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<S, D::Error> {
         deserializer.deserialize_seq(self)
     }
 }
 
-impl<'de> Visitor<'de> for RecordsIn {
-    type Value = heapless::Vec<Record, MAX_BATCH>;
+impl<'de, S: RecordSink> Visitor<'de> for RecordsIn<S> {
+    type Value = S;
 
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "at most {MAX_BATCH} samples")
     }
 
-    fn visit_seq<A: SeqAccess<'de>>(self, mut samples: A) -> Result<Self::Value, A::Error> {
+    fn visit_seq<A: SeqAccess<'de>>(self, mut samples: A) -> Result<S, A::Error> {
         // Refuse an oversized count before reading any of it.
         if let Some(count) = samples.size_hint()
             && count > MAX_BATCH
         {
             return Err(de::Error::invalid_length(count, &self));
         }
-        let mut records = heapless::Vec::new();
+        let mut sink = S::default();
         while let Some(record) = samples.next_element_seed(RecordIn {
             channels: self.channels,
         })? {
-            records
-                .push(record)
-                .map_err(|_| de::Error::invalid_length(MAX_BATCH + 1, &self))?;
+            if !sink.take(record) {
+                return Err(de::Error::invalid_length(MAX_BATCH + 1, &self));
+            }
         }
-        Ok(records)
+        Ok(sink)
     }
 }
 
