@@ -229,6 +229,17 @@ pub fn configure(
             }
         };
     }
+    // The weak form when the signal is sampled finely enough: a row every sample, summed
+    // over a test function a third of the period long, under a short derivative window
+    // (after Ω's estimate, which is made on the window chosen for rows as they are).
+    if let Some(test) =
+        lssi_core::tuning::choose_test_rows::<WINDOW_CAPACITY>(choice.period, memory_samples)
+    {
+        config.test_rows = test.test_rows;
+        config.row_stride = 1;
+        config.window = test.window;
+        config.derivative_degree = test.degree;
+    }
     config
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;

@@ -91,7 +91,40 @@ fn zero_mean_noise_at_delta_0_1() {
         seed: 5,
         ..PaperOptions::default()
     };
-    check(opts, &paper_options(true), 2.0);
+    // Over seeds 4–11 the worst coefficient is 0.3–2.4 % off (the weak x term; the noise
+    // differs from seed to seed, not the sign of the error) and the mean 0.13–0.78 %.
+    let recording = generate_paper(&opts).to_recording("eq17.csv");
+    let report = identify_recording(&recording, &paper_options(true)).expect("identifies");
+    let (errors, spurious) = score(&report, &TRUTH);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    let worst = errors.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        mean <= 1.0 && worst <= 3.0 && spurious == 0,
+        "errors {errors:?} %, {spurious} spurious, model {:?}",
+        report.terms
+    );
+}
+
+#[test]
+fn zero_mean_noise_at_delta_0_1_from_displacement_alone() {
+    // The case the test-function rows are for: x'' from x alone at δ = 0.1 (with rows
+    // as they are, 25–36 % off with spurious terms on two of the benchmark's three seeds).
+    let opts = PaperOptions {
+        delta: 0.1,
+        noise: NoiseKind::Uniform0,
+        observe: Observe::X,
+        seed: 5,
+        ..PaperOptions::default()
+    };
+    let recording = generate_paper(&opts).to_recording("eq17.csv");
+    let report = identify_recording(&recording, &paper_options(true)).expect("identifies");
+    let (errors, spurious) = score(&report, &TRUTH);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(
+        mean <= 3.0 && spurious == 0,
+        "errors {errors:?} %, {spurious} spurious, model {:?}",
+        report.terms
+    );
 }
 
 #[test]

@@ -63,6 +63,14 @@ pub struct Config {
     /// on a given support, but the MES selection at high noise is not yet up to it (see the
     /// README's accuracy section).
     pub noise_correction: bool,
+    /// Test-function rows (the weak form): each row that goes into the regression is the
+    /// average of `test_rows` consecutive rows weighted by the smooth bump (1 − τ²)⁴, four
+    /// such averages overlapping (one completes every `test_rows / 4` rows). The equation
+    /// holds row by row, so it holds for any weighted sum of rows; a smooth weight cancels
+    /// most of the noise of the derivative estimates (Σφ·ĥ₂∗x = Σ(φ∗ĥ₂)·x ≈ Σφ''·x) while
+    /// the library terms are still taken pointwise from a short window. 0: every row goes
+    /// in as it is. A multiple of 4, at least 8.
+    pub test_rows: u16,
 }
 
 impl Default for Config {
@@ -83,6 +91,7 @@ impl Default for Config {
             offsets: true,
             max_abs: 1e9,
             noise_correction: false,
+            test_rows: 0,
         }
     }
 }
@@ -132,6 +141,8 @@ pub enum ConfigError {
     /// `noise_correction` is on, but lssi-core was built without its `noise-correction`
     /// feature (the firmware leaves it out: 3.5 KB of flash).
     NoiseCorrectionUnavailable,
+    /// `test_rows` is neither 0 nor a multiple of 4 of at least 8.
+    TestRows(u16),
 }
 
 impl fmt::Display for ConfigError {
@@ -156,6 +167,7 @@ impl fmt::Display for ConfigError {
                 f,
                 "the samples carry {channels} channels (x, and v and u when measured), but this identifier was built with ring buffers for {capacity}"
             ),
+            ConfigError::TestRows(v) => write!(f, "test_rows is {v}, but it must be 0 (off) or a multiple of 4 of at least 8"),
             ConfigError::NoiseCorrectionUnavailable => f.write_str(
                 "noise_correction is on, but this build of lssi-core has no `noise-correction` feature",
             ),
@@ -214,6 +226,9 @@ impl Config {
         }
         if !(self.max_abs > 0.0) {
             return Err(ConfigError::MaxAbs(self.max_abs));
+        }
+        if self.test_rows != 0 && (self.test_rows < 8 || !self.test_rows.is_multiple_of(4)) {
+            return Err(ConfigError::TestRows(self.test_rows));
         }
         if self.library.input && !self.channels.input {
             return Err(ConfigError::InputWithoutChannel);

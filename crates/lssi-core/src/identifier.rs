@@ -36,6 +36,7 @@ use crate::model::{MAX_SOLUTIONS, Model, Solution};
 use crate::real::Real;
 use crate::screen;
 use crate::smoothing::KnnSmoother;
+use crate::weak::TestRows;
 use heapless::HistoryBuf;
 
 /// The ring buffer of v, when v is measured (x's is ring 0, u's the next one).
@@ -181,6 +182,18 @@ impl Counters {
     }
 }
 
+/// Test-function sums per block of A or B (two test functions' worth).
+const TEST_BLOCK: u64 = 8;
+
+/// What gathers the rows before they reach A or B. The two never coexist, so the sums take
+/// no memory beyond the block factor's.
+enum Collector<T, const P: usize> {
+    /// Rows as they are, gathered in a block factor that is merged into A or B when full.
+    Block(Factor<T, P>),
+    /// The test-function sums (`Config::test_rows`); each completed one goes into A or B.
+    Sums(TestRows<T, P>),
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 struct Row<T> {
     x: T,
@@ -232,7 +245,11 @@ pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 
     scales: [T; P],
     y_scale: T,
     store: Store<T, P>,
-    block: Factor<T, P>,
+    /// What gathers the rows before they reach A or B.
+    collector: Collector<T, P>,
+    /// Rows given to A and B: the rows themselves, or the test-function sums.
+    regression_rows: u64,
+    /// Regression rows per block of A or B.
     block_len: u64,
     sqrt_lambda: T,
     sqrt_lambda_blocks: T,
@@ -240,6 +257,10 @@ pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 
     long_v2: T,
     long_weight: T,
     short_alpha: T,
+    /// λ of one row (the excitation gate's long average forgets by it).
+    row_lambda: T,
+    /// Rows the gate's long average needs before it gates.
+    warm_rows: T,
     x_min: T,
     x_max: T,
     /// Σ(v̂ − dx̂/dt) over the rows, with dx̂/dt telescoped (see `row`), but for the half
@@ -415,6 +436,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
                 offsets: false,
                 max_abs: 0.0,
                 noise_correction: false,
+                test_rows: 0,
             },
             library: Library::zeroed(),
             taps: FoldedTaps::empty(),
@@ -437,7 +459,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             scales: [T::ZERO; P],
             y_scale: T::ZERO,
             store: Store::Warmup(heapless::Vec::new()),
-            block: Factor::new(0),
+            collector: Collector::Block(Factor::new(0)),
+            regression_rows: 0,
             block_len: 0,
             sqrt_lambda: T::ZERO,
             sqrt_lambda_blocks: T::ZERO,
@@ -445,6 +468,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             long_v2: T::ZERO,
             long_weight: T::ZERO,
             short_alpha: T::ZERO,
+            row_lambda: T::ZERO,
+            warm_rows: T::ZERO,
             x_min: T::ZERO,
             x_max: T::ZERO,
             dv_sum: T::ZERO,
@@ -507,7 +532,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             scales,
             y_scale,
             store,
-            block,
+            collector,
+            regression_rows,
             block_len,
             sqrt_lambda,
             sqrt_lambda_blocks,
@@ -515,6 +541,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             long_v2,
             long_weight,
             short_alpha,
+            row_lambda,
+            warm_rows,
             x_min,
             x_max,
             dv_sum,
@@ -583,14 +611,33 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         *scales = [T::ONE; P];
         *y_scale = T::ONE;
         *store = Store::Warmup(heapless::Vec::new());
-        *block = Factor::new(n);
-        *block_len = blocks;
-        *sqrt_lambda = T::from_f64(libm::sqrt(lambda));
-        *sqrt_lambda_blocks = T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * blocks as f64));
+        *regression_rows = 0;
+        if c.test_rows == 0 {
+            *collector = Collector::Block(Factor::new(n));
+            *block_len = blocks;
+            *sqrt_lambda = T::from_f64(libm::sqrt(lambda));
+            // A's content at a merge is two blocks old.
+            *sqrt_lambda_blocks = T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * blocks as f64));
+        } else {
+            // λ and the blocks count in sums (one every L/4 rows); a block of eight sums
+            // spans two test functions, so that A's and B's rows share little of the data.
+            // A sum goes straight into A or B, whose content at the start of its block is
+            // one block old.
+            let mut sums = TestRows::zeroed();
+            sums.configure(c.test_rows);
+            let sqrt_lambda_sum = libm::pow(libm::sqrt(lambda), f64::from(sums.quarter()));
+            *collector = Collector::Sums(sums);
+            *block_len = TEST_BLOCK;
+            *sqrt_lambda = T::from_f64(sqrt_lambda_sum);
+            *sqrt_lambda_blocks = T::from_f64(libm::pow(sqrt_lambda_sum, TEST_BLOCK as f64));
+        }
         *short_v2 = T::ZERO;
         *long_v2 = T::ZERO;
         *long_weight = T::ZERO;
         *short_alpha = T::ONE / T::from_usize(blocks as usize);
+        let sqrt_lambda_one = T::from_f64(libm::sqrt(lambda));
+        *row_lambda = sqrt_lambda_one * sqrt_lambda_one;
+        *warm_rows = T::from_usize(blocks as usize);
         *x_min = T::MAX;
         *x_max = -T::MAX;
         *dv_sum = T::ZERO;
@@ -898,12 +945,12 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         // The excitation gate.
         let v2 = row.v * row.v;
         self.short_v2 += self.short_alpha * (v2 - self.short_v2);
-        let warm = self.long_weight > T::from_usize(self.block_len as usize);
+        let warm = self.long_weight > self.warm_rows;
         if warm && self.short_v2 < T::from_f64(GATE * GATE) * self.long_v2 {
             self.counters.gated += 1;
             return;
         }
-        let lambda = self.sqrt_lambda * self.sqrt_lambda;
+        let lambda = self.row_lambda;
         self.long_weight = lambda * self.long_weight + T::ONE;
         self.long_v2 += (v2 - self.long_v2) / self.long_weight;
         self.x_min = self.x_min.min(row.x);
@@ -1005,20 +1052,52 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             *t *= *s;
         }
         let y = r.y / self.y_scale;
-        // Rows go into a block factor first; a whole block is then merged into A or B. The
-        // big factors thus grow by block-sized increments, which f32 resolves, instead of by
-        // single rows, whose relative size 1/n falls below f32's rounding after ~10⁵ rows.
-        self.block.update(&theta, y, self.sqrt_lambda);
         self.counters.rows += 1;
-        if self.counters.rows.is_multiple_of(self.block_len) {
-            let parity = (self.counters.rows / self.block_len) % 2;
-            // Rows reach the block only after the warm-up, so the halves exist.
-            if let Store::Halves(a, b) = &mut self.store {
-                let factor = if parity == 1 { a } else { b };
-                factor.forget(self.sqrt_lambda_blocks);
-                factor.merge(&self.block);
+        let Self {
+            collector,
+            store,
+            regression_rows,
+            block_len,
+            sqrt_lambda,
+            sqrt_lambda_blocks,
+            ..
+        } = self;
+        let Store::Halves(a, b) = store else {
+            // Rows reach the collector only after the warm-up, so the halves exist.
+            return;
+        };
+        let (block_len, sqrt_lambda, sqrt_lambda_blocks) =
+            (*block_len, *sqrt_lambda, *sqrt_lambda_blocks);
+        match collector {
+            // Rows go into a block factor first; a whole block is then merged into A or B.
+            // The big factors thus grow by block-sized increments, which f32 resolves,
+            // instead of by single rows, whose relative size 1/n falls below f32's rounding
+            // after ~10⁵ rows.
+            Collector::Block(block) => {
+                block.update(&theta, y, sqrt_lambda);
+                *regression_rows += 1;
+                if regression_rows.is_multiple_of(block_len) {
+                    let parity = (*regression_rows / block_len) % 2;
+                    let factor = if parity == 1 { a } else { b };
+                    factor.forget(sqrt_lambda_blocks);
+                    factor.merge(block);
+                    block.clear();
+                }
             }
-            self.block.clear();
+            // A sum weighs as much as L/4 rows and there are few of them (10⁵ samples make
+            // 400): each goes straight into A or B, blocks of TEST_BLOCK alternating.
+            Collector::Sums(sums) => {
+                let n = self.library.len();
+                sums.push(&theta, y, n, |sum, target| {
+                    let k = *regression_rows / block_len;
+                    let factor = if k % 2 == 0 { &mut *a } else { &mut *b };
+                    if regression_rows.is_multiple_of(block_len) {
+                        factor.forget(sqrt_lambda_blocks);
+                    }
+                    factor.update(sum, target, sqrt_lambda);
+                    *regression_rows += 1;
+                });
+            }
         }
     }
 
@@ -1028,11 +1107,13 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             Store::Halves(a, b) => (a.weight(), b.weight()),
             Store::Warmup(_) => (T::ZERO, T::ZERO),
         };
-        if self.block.weight() > T::ZERO {
-            if (self.counters.rows / self.block_len).is_multiple_of(2) {
-                a += self.block.weight();
+        if let Collector::Block(block) = &self.collector
+            && block.weight() > T::ZERO
+        {
+            if (self.regression_rows / self.block_len).is_multiple_of(2) {
+                a += block.weight();
             } else {
-                b += self.block.weight();
+                b += block.weight();
             }
         }
         (a, b)
@@ -1060,11 +1141,13 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
                 w.b.clear();
             }
         }
-        if self.block.weight() > T::ZERO {
-            if (self.counters.rows / self.block_len).is_multiple_of(2) {
-                w.a.merge(&self.block)
+        if let Collector::Block(block) = &self.collector
+            && block.weight() > T::ZERO
+        {
+            if (self.regression_rows / self.block_len).is_multiple_of(2) {
+                w.a.merge(block)
             } else {
-                w.b.merge(&self.block)
+                w.b.merge(block)
             }
         }
         if offset_v != T::ZERO {

@@ -23,6 +23,7 @@ pub mod real;
 mod screen;
 pub mod smoothing;
 pub mod tuning;
+mod weak;
 
 pub use config::{Channels, Config, ConfigError};
 pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample};

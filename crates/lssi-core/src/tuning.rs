@@ -98,6 +98,79 @@ pub fn choose_window<T: Real, const W: usize>(
     Some(choice)
 }
 
+/// The source's mean period over the test function's width (see [`choose_test_rows`]).
+pub const TEST_PERIOD_DIVISOR: f64 = 3.0;
+/// The shortest test function worth having, in rows: below it the weights cannot be smooth
+/// and the rows go into the regression as they are.
+pub const MIN_TEST_ROWS: usize = 64;
+/// The derivative window under test-function rows, as a fraction of the test function.
+pub const TEST_WINDOW_FRACTION: usize = 16;
+/// The polynomial degree under test-function rows.
+pub const TEST_DEGREE: u8 = 5;
+
+/// Test-function rows for a recording, and the short derivative window under them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TestRowsChoice {
+    /// Rows (one per sample) per test function: `Config::test_rows`.
+    pub test_rows: u16,
+    /// Samples in the derivative window.
+    pub window: usize,
+    /// Its polynomial degree.
+    pub degree: u8,
+}
+
+/// The weak form's set-up (the `weak` module, `Config::test_rows`) from the source's mean
+/// period in samples ([`WindowChoice::period`]) and the samples the fit averages over.
+///
+/// The test function spans a third of the mean period: long enough that the weighted sum
+/// of the target cancels its noise (the weights' second difference is small), short enough
+/// that the weights pass the motion's first harmonics (a (1 − τ²)⁴ bump over T/3 keeps
+/// 95 % of the fundamental and two thirds of the third harmonic). On eq. 17 (T ≈ 3150
+/// samples) halving it lost the weak x-only terms and doubling it the harmonics' detail; a
+/// third was the best of 512, 768, 1024 and 1536 samples on every seed. It is also at most
+/// a sixteenth of the samples, so that the fit has 64 sums at least. Rows are taken at
+/// every sample: summing rows a stride apart leaves the derivative filter's polyphase sums,
+/// which do not vanish, and the noise comes back.
+///
+/// The derivative window is a sixteenth of the test function (odd, within the capacity
+/// `W`), degree 5: short, so that the library terms are evaluated on nearly unbent signals;
+/// the test function does the averaging. Between 31 and 127 samples the eq. 17 results
+/// hardly moved.
+///
+/// `None` (rows as they are, the window from [`choose_window`]) without a period or when a
+/// third of it is under [`MIN_TEST_ROWS`] samples (a signal sampled that coarsely leaves no
+/// room for smooth weights).
+pub fn choose_test_rows<const W: usize>(
+    period: Option<f64>,
+    samples: usize,
+) -> Option<TestRowsChoice> {
+    let period = period?;
+    if !(period.is_finite() && period > 0.0) {
+        return None;
+    }
+    let width = ((period / TEST_PERIOD_DIVISOR) as usize)
+        .min(samples / 16)
+        .min(usize::from(u16::MAX));
+    let width = width - width % 4;
+    if width < MIN_TEST_ROWS {
+        return None;
+    }
+    let min_window = usize::from(TEST_DEGREE) + 3;
+    // Odd (the centre is a sample), rounded up, within the capacity.
+    let mut window = (width / TEST_WINDOW_FRACTION).max(min_window) | 1;
+    if window > W {
+        window = W - (1 - W % 2);
+    }
+    if window < min_window {
+        return None;
+    }
+    Some(TestRowsChoice {
+        test_rows: width as u16,
+        window,
+        degree: TEST_DEGREE,
+    })
+}
+
 /// E[(Δ⁴s)²] / σ² for white noise of variance σ² on a signal smooth at the sample rate
 /// (1 + 16 + 36 + 16 + 1): the identifier's running noise estimate uses it too.
 pub(crate) const FOURTH_DIFFERENCE_GAIN: f64 = 70.0;
@@ -325,6 +398,32 @@ fn choose_capped<T: Real, const W: usize>(
 
 #[cfg(test)]
 mod tests {
+    /// A third of the period, a multiple of 4, a sixteenth of the samples at most; the
+    /// window a sixteenth of that, odd; off without a period or when too coarse.
+    #[test]
+    fn test_rows_from_the_period() {
+        let c = choose_test_rows::<1023>(Some(3150.0), 100_000).unwrap();
+        assert_eq!((c.test_rows, c.window, c.degree), (1048, 65, 5));
+        let c = choose_test_rows::<1023>(Some(3150.0), 8_000).unwrap();
+        assert_eq!((c.test_rows, c.window), (500, 31));
+        let c = choose_test_rows::<1023>(Some(200.0), 100_000).unwrap();
+        assert_eq!((c.test_rows, c.window), (64, 9));
+        assert_eq!(choose_test_rows::<1023>(None, 100_000), None);
+        assert_eq!(choose_test_rows::<1023>(Some(150.0), 100_000), None);
+        assert_eq!(choose_test_rows::<1023>(Some(f64::NAN), 100_000), None);
+        let c = choose_test_rows::<1023>(Some(1e9), 1 << 30).unwrap();
+        assert_eq!((c.test_rows, c.window), (65532, 1023));
+        let c = choose_test_rows::<63>(Some(1e9), 1 << 30).unwrap();
+        assert_eq!(c.window, 63);
+        let c = choose_test_rows::<64>(Some(1e9), 1 << 30).unwrap();
+        assert_eq!(c.window, 63);
+        for t in (192..20_000).step_by(7) {
+            let c = choose_test_rows::<1023>(Some(t as f64), 1_000_000).unwrap();
+            assert!(c.test_rows.is_multiple_of(4) && c.test_rows >= 64 && c.window % 2 == 1);
+            assert!(c.window >= 8 && c.window <= 1023);
+        }
+    }
+
     use super::*;
 
     const W: usize = 1023;

@@ -119,6 +119,7 @@ pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
         parsimony: config.parsimony,
         offsets: config.offsets,
         max_abs: config.max_abs,
+        test_rows: config.test_rows,
     })
 }
 
@@ -150,6 +151,7 @@ pub fn config_from_wire(wire: &WireConfig) -> Config {
         max_abs: wire.max_abs,
         // A host-side experiment that the protocol does not carry.
         noise_correction: false,
+        test_rows: wire.test_rows,
     }
 }
 

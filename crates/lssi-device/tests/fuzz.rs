@@ -88,14 +88,19 @@ fn wire_config() -> impl Strategy<Value = WireConfig> {
             any::<bool>(),
             0u16..6,
         ),
-        (any_f64(), any::<bool>(), any_f64()),
+        (
+            any_f64(),
+            any::<bool>(),
+            any_f64(),
+            prop_oneof![Just(0u16), 0u16..40],
+        ),
     )
         .prop_map(
             |(
                 (sample_period_s, window, derivative_degree, poly_order, family, constant),
                 (harmonics, use_u, omega, has_v, has_u),
                 (memory_time_s, screening_period, thresholds, smoothing, row_stride),
-                (parsimony, offsets, max_abs),
+                (parsimony, offsets, max_abs, test_rows),
             )| WireConfig {
                 sample_period_s,
                 window,
@@ -120,6 +125,7 @@ fn wire_config() -> impl Strategy<Value = WireConfig> {
                 parsimony,
                 offsets,
                 max_abs,
+                test_rows,
             },
         )
 }

@@ -127,4 +127,6 @@ pub struct WireConfig {
     pub offsets: bool,
     /// A sample whose |x|, |v| or |u| exceeds this is rejected.
     pub max_abs: f64,
+    /// Rows per test function (the weak form; 0: every row as it is). Since version 3.
+    pub test_rows: u16,
 }

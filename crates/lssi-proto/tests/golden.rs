@@ -13,18 +13,18 @@ fn crc_is_crc32c() {
     // The catalogue's check value of CRC-32C (iSCSI): "123456789" → 0xE3069283.
     let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
     assert_eq!(crc.checksum(b"123456789"), 0xE306_9283);
-    // The Hello frame's CRC, over its payload 00 02.
-    assert_eq!(crc.checksum(&[0x00, 0x02]), 0x105A_0725);
+    // The Hello frame's CRC, over its payload 00 03.
+    assert_eq!(crc.checksum(&[0x00, 0x03]), 0xE231_8426);
 }
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 2, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 3, "update the README's worked examples");
     assert_eq!(
         frame(&HostMsg::Hello {
-            protocol_version: 2
+            protocol_version: 3
         }),
-        [0x01, 0x06, 0x02, 0x25, 0x07, 0x5A, 0x10, 0x00]
+        [0x01, 0x06, 0x03, 0x26, 0x84, 0x31, 0xE2, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),

@@ -87,7 +87,7 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
             any::<bool>(),
             any::<u16>(),
         ),
-        (any_f64(), any::<bool>(), any_f64()),
+        (any_f64(), any::<bool>(), any_f64(), any::<u16>()),
     )
         .prop_map(
             |(
@@ -102,7 +102,7 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
                 ),
                 (use_u, omega, has_v, has_u),
                 (memory_time_s, screening_period, thresholds, smoothing, row_stride),
-                (parsimony, offsets, max_abs),
+                (parsimony, offsets, max_abs, test_rows),
             )| WireConfig {
                 sample_period_s,
                 window,
@@ -123,6 +123,7 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
                 parsimony,
                 offsets,
                 max_abs,
+                test_rows,
             },
         )
 }
@@ -327,6 +328,7 @@ pub fn worst_config() -> WireConfig {
         parsimony: 0.05,
         offsets: true,
         max_abs: 1e9,
+        test_rows: u16::MAX,
     }
 }
 

@@ -1,0 +1,154 @@
+//! Test-function rows: the weak form of the regression (DESIGN.md, "Test-function rows").
+//!
+//! The equation ŷ = θ(x̂, v̂, t)·ξ holds row by row, so it holds for any weighted sum of
+//! rows. A sum weighted by a smooth bump φ over `L` rows keeps the signal (φ passes the
+//! harmonics of the motion) and cancels most of the derivative estimate's noise: the
+//! target's noise is the raw noise through φ∗h₂, and φ∗h₂ ≈ φ'' is small when φ is smooth
+//! and long, while h₂ alone (a short second-derivative filter) amplifies the noise by
+//! ‖h₂‖. The library terms are still evaluated pointwise on estimates from a short window,
+//! so the smoothing does not bend the nonlinear terms: a short derivative window (little
+//! bias) and a long test function (little noise) instead of one window that must trade
+//! one for the other.
+//!
+//! φ(τ) = (1 − τ²)⁴ on τ ∈ (−1, 1), sampled at the row midpoints and normalised to sum 1.
+//! Four sums overlap, started a quarter of `L` apart, so one completes every L/4 rows: each
+//! row of the input is in four of them. Memory: four partial rows.
+
+use crate::real::Real;
+
+/// Overlapping test-function sums.
+pub(crate) struct TestRows<T, const P: usize> {
+    /// Rows per test function, L (0: off).
+    width: u32,
+    /// L / 4: rows between two completed sums.
+    quarter: u32,
+    /// Rows taken since the start (or the last restart).
+    phase: u32,
+    /// 1/L: τ of row i is (2i + 1)/L − 1.
+    step: T,
+    /// 1/Σφ over the L midpoints.
+    inverse_norm: T,
+    /// The four partial sums of the columns and the target.
+    columns: [[T; P]; 4],
+    targets: [T; 4],
+}
+
+impl<T: Real, const P: usize> TestRows<T, P> {
+    /// Off, every field zero (for a `.bss` identifier).
+    pub const fn zeroed() -> Self {
+        Self {
+            width: 0,
+            quarter: 0,
+            phase: 0,
+            step: T::ZERO,
+            inverse_norm: T::ZERO,
+            columns: [[T::ZERO; P]; 4],
+            targets: [T::ZERO; 4],
+        }
+    }
+
+    /// Sets the width L (a multiple of 4, or 0 for off) and clears the sums.
+    pub fn configure(&mut self, width: u16) {
+        self.width = u32::from(width);
+        self.quarter = self.width / 4;
+        if width > 0 {
+            let l = f64::from(width);
+            let mut sum = 0.0;
+            for i in 0..self.width {
+                let tau = (2.0 * f64::from(i) + 1.0) / l - 1.0;
+                let b = 1.0 - tau * tau;
+                sum += (b * b) * (b * b);
+            }
+            self.step = T::from_f64(1.0 / l);
+            self.inverse_norm = T::from_f64(1.0 / sum);
+        }
+        self.restart();
+    }
+
+    /// Rows between two completed sums.
+    pub fn quarter(&self) -> u32 {
+        self.quarter
+    }
+
+    /// Drops the partial sums: after a gap in time a sum would join unrelated stretches.
+    pub fn restart(&mut self) {
+        self.phase = 0;
+        self.columns = [[T::ZERO; P]; 4];
+        self.targets = [T::ZERO; 4];
+    }
+
+    /// Adds a row (its first `n` columns and its target) to the sums it falls in; a sum
+    /// that completes with it is handed to `emit` and started again.
+    pub fn push(&mut self, theta: &[T; P], y: T, n: usize, mut emit: impl FnMut(&[T; P], T)) {
+        for k in 0..4u32 {
+            let start = k * self.quarter;
+            if self.phase < start {
+                continue;
+            }
+            let i = (self.phase - start) % self.width;
+            let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
+            let b = T::ONE - tau * tau;
+            let w = (b * b) * (b * b) * self.inverse_norm;
+            let j = k as usize;
+            for (s, t) in self.columns[j][..n].iter_mut().zip(theta[..n].iter()) {
+                *s += w * *t;
+            }
+            self.targets[j] += w * y;
+            if i + 1 == self.width {
+                emit(&self.columns[j], self.targets[j]);
+                self.columns[j] = [T::ZERO; P];
+                self.targets[j] = T::ZERO;
+            }
+        }
+        self.phase = self.phase.wrapping_add(1);
+        // Keep the phase bounded without moving any sum's position (a multiple of L).
+        if self.phase >= 4 * self.width + 3 * self.quarter {
+            self.phase -= 4 * self.width;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each completed sum is the φ-weighted mean of the L rows it covers: a constant row
+    /// comes out unchanged, one sum every L/4 rows once the first is complete.
+    #[test]
+    fn sums_are_weighted_means_one_every_quarter() {
+        let mut t: TestRows<f64, 4> = TestRows::zeroed();
+        t.configure(16);
+        let mut out = std::vec::Vec::new();
+        for r in 0..100 {
+            t.push(&[1.0, 2.0, 0.0, 0.0], 3.0, 2, |c, y| {
+                out.push((r, c[0], c[1], y))
+            });
+        }
+        let rows: std::vec::Vec<_> = out.iter().map(|o| o.0).collect();
+        assert_eq!(rows[..4], [15, 19, 23, 27]);
+        assert!(rows.windows(2).all(|w| w[1] - w[0] == 4));
+        for (_, a, b, y) in out {
+            assert!((a - 1.0).abs() < 1e-12 && (b - 2.0).abs() < 1e-12 && (y - 3.0).abs() < 1e-12);
+        }
+    }
+
+    /// A linear ramp's weighted mean is its value at the window's centre (φ is symmetric),
+    /// and a restart drops what was summed before it.
+    #[test]
+    fn symmetric_weights_and_restart() {
+        let mut t: TestRows<f64, 2> = TestRows::zeroed();
+        t.configure(8);
+        let mut out = std::vec::Vec::new();
+        for r in 0..5 {
+            t.push(&[1e6, 0.0], 0.0, 1, |_, _| {
+                panic!("emitted before a restart {r}")
+            });
+        }
+        t.restart();
+        for r in 0..8 {
+            t.push(&[r as f64, 0.0], 0.0, 1, |c, _| out.push(c[0]));
+        }
+        assert_eq!(out.len(), 1);
+        assert!((out[0] - 3.5).abs() < 1e-12, "{}", out[0]);
+    }
+}
