@@ -38,7 +38,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 elf=target/thumbv7em-none-eabihf/release/lssi-firmware
 
-for image in bench-identifier bench-baseline bench-profile; do
+for image in bench-identifier bench-baseline bench-profile bench-weak; do
     cargo build --release --locked --quiet --features "$image"
     cp "$elf" "$work/$image.elf"
 done
@@ -58,6 +58,7 @@ run() { # run IMAGE: the image under QEMU, its defmt lines decoded into IMAGE.ou
 }
 run bench-identifier
 run bench-profile
+run bench-weak
 
 sizes() { # sizes IMAGE: "flash_code flash_total static_ram"
     "$llvm_size" -A "$work/$1.elf" | awk '
@@ -174,3 +175,38 @@ echo
 echo "The last column shares out the mean without screening: a row every 4 samples, a block every 508."
 echo "Instructions, not cycles: a 64 MHz Cortex-M4F at 10 kHz has 6400 cycles a sample, and takes"
 echo "more than one cycle for some instructions (loads, branches, VDIV/VSQRT 14)."
+
+# The same signal under the configuration `lssi identify` sends a device for it: test-function
+# rows (520 rows, a third of the period), a row every sample, a 33-sample window.
+weak="$work/bench-weak.out"
+read -r _ _ weak_ram < <(sizes bench-weak)
+weak_all=$(field "$weak" push_all mean)
+weak_steady=$(field "$weak" push_steady mean)
+weak_steady_max=$(field "$weak" push_steady max)
+weak_screen_mean=$(field "$weak" push_screen mean)
+weak_screen_max=$(field "$weak" push_screen max)
+weak_push_stack=$(value "$weak" push_stack)
+weak_screen_stack=$(value "$weak" screen_stack)
+weak_config_stack=$(max "$(value "$weak" configure_stack)" "$(value "$weak" reconfigure_stack)")
+for v in weak_all weak_steady weak_steady_max weak_screen_max weak_push_stack weak_screen_stack; do
+    if [[ -z ${!v} ]]; then
+        cat "$weak" >&2
+        echo "firmware-bench: no figure for $v in the bench-weak image's output" >&2
+        exit 1
+    fi
+done
+weak_peak=$(max "$(max "$weak_push_stack" "$weak_screen_stack")" "$weak_config_stack")
+weak_total=$((weak_ram + weak_peak))
+echo
+echo "As configured by \`lssi identify\` for this signal (bench-weak image): test-function rows"
+echo "of 520 rows, a row every sample, window 33, degree 5"
+echo
+printf '| %-52s | %12s | %-14s | %-14s |\n' "figure" "measured" "target" "goal 32K/8K/2000"
+printf '|%s|%s|%s|%s|\n' "$(printf -- '-%.0s' {1..54})" "$(printf -- '-%.0s' {1..14})" \
+    "$(printf -- '-%.0s' {1..16})" "$(printf -- '-%.0s' {1..16})"
+row "RAM, static + peak stack" "$weak_total B" "<= 16384 $(check "$weak_total" 16384)" "<= 8192 $(check "$weak_total" 8192)"
+row "  peak stack, streaming / screening" "$weak_push_stack / $weak_screen_stack B" "" ""
+row "instructions/sample, mean (screening spread over it)" "$weak_all" "<= 5000 $(check "$weak_all" 5000)" "<= 2000 $(check "$weak_all" 2000)"
+row "  mean without the screening" "$weak_steady" "" ""
+row "instructions/sample, worst outside screening" "$weak_steady_max" "" ""
+row "screening (threshold sweep + MES), mean / worst" "$weak_screen_mean / $weak_screen_max" "stated" ""

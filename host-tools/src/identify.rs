@@ -231,10 +231,11 @@ pub fn configure(
     }
     // The weak form when the signal is sampled finely enough: a row every sample, summed
     // over a test function a third of the period long, under a short derivative window
-    // (after Ω's estimate, which is made on the window chosen for rows as they are).
-    if let Some(test) =
-        lssi_core::tuning::choose_test_rows::<WINDOW_CAPACITY>(choice.period, memory_samples)
-    {
+    // (after Ω's estimate, which is made on the window chosen for rows as they are). The
+    // noise correction (an experiment) works on rows as they are only.
+    let test =
+        lssi_core::tuning::choose_test_rows::<WINDOW_CAPACITY>(choice.period, memory_samples);
+    if let Some(test) = test.filter(|_| !options.noise_correction) {
         config.test_rows = test.test_rows;
         config.row_stride = 1;
         config.window = test.window;

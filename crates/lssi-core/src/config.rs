@@ -60,8 +60,10 @@ pub struct Config {
     pub max_abs: f64,
     /// Take the noise of x̂ and v̂ out of the normal equations before each sweep (errors in
     /// variables, the `eiv` module). Off by default: it removes the bias of the estimates
-    /// on a given support, but the MES selection at high noise is not yet up to it (see the
-    /// README's accuracy section).
+    /// on a given support, but the MES selection at high noise is not up to it (see the
+    /// README's accuracy section). For rows as they are only (`test_rows` 0): its
+    /// correction is derived from the moments of pointwise rows, which sums of rows do not
+    /// have.
     pub noise_correction: bool,
     /// Test-function rows (the weak form): each row that goes into the regression is the
     /// average of `test_rows` consecutive rows weighted by the smooth bump (1 − τ²)⁴, four
@@ -143,6 +145,8 @@ pub enum ConfigError {
     NoiseCorrectionUnavailable,
     /// `test_rows` is neither 0 nor a multiple of 4 of at least 8.
     TestRows(u16),
+    /// `noise_correction` and `test_rows` are both on.
+    NoiseCorrectionWithTestRows,
 }
 
 impl fmt::Display for ConfigError {
@@ -168,6 +172,9 @@ impl fmt::Display for ConfigError {
                 "the samples carry {channels} channels (x, and v and u when measured), but this identifier was built with ring buffers for {capacity}"
             ),
             ConfigError::TestRows(v) => write!(f, "test_rows is {v}, but it must be 0 (off) or a multiple of 4 of at least 8"),
+            ConfigError::NoiseCorrectionWithTestRows => f.write_str(
+                "noise_correction works on rows as they are, but test_rows asks for sums of rows; set test_rows to 0",
+            ),
             ConfigError::NoiseCorrectionUnavailable => f.write_str(
                 "noise_correction is on, but this build of lssi-core has no `noise-correction` feature",
             ),
@@ -230,6 +237,9 @@ impl Config {
         if self.test_rows != 0 && (self.test_rows < 8 || !self.test_rows.is_multiple_of(4)) {
             return Err(ConfigError::TestRows(self.test_rows));
         }
+        if self.noise_correction && self.test_rows != 0 {
+            return Err(ConfigError::NoiseCorrectionWithTestRows);
+        }
         if self.library.input && !self.channels.input {
             return Err(ConfigError::InputWithoutChannel);
         }
@@ -263,5 +273,40 @@ mod tests {
             let text = std::format!("{}", ConfigError::NoiseCorrectionUnavailable);
             assert!(text.contains("noise-correction"), "{text}");
         }
+    }
+
+    /// Test-function rows: 0 or a multiple of 4 of at least 8, and not with the noise
+    /// correction (which needs pointwise rows).
+    #[test]
+    fn test_rows_are_checked() {
+        for ok in [0u16, 8, 12, 1048, 65532] {
+            let config = Config {
+                test_rows: ok,
+                ..Config::default()
+            };
+            assert_eq!(config.validate::<256, 16, 3>(), Ok(()), "{ok}");
+        }
+        for bad in [1u16, 4, 6, 9, 1050, 65535] {
+            let config = Config {
+                test_rows: bad,
+                ..Config::default()
+            };
+            assert_eq!(
+                config.validate::<256, 16, 3>(),
+                Err(ConfigError::TestRows(bad))
+            );
+        }
+        let both = Config {
+            test_rows: 64,
+            noise_correction: true,
+            ..Config::default()
+        };
+        let expected = if cfg!(feature = "noise-correction") {
+            ConfigError::NoiseCorrectionWithTestRows
+        } else {
+            ConfigError::NoiseCorrectionUnavailable
+        };
+        assert_eq!(both.validate::<256, 16, 3>(), Err(expected));
+        assert!(std::format!("{}", ConfigError::TestRows(6)).contains("test_rows is 6"));
     }
 }

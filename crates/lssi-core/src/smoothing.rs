@@ -50,6 +50,8 @@ pub struct KnnSmoother<T> {
     errors: [T; MAX_NEIGHBOURS + 1],
     evaluations: T,
     rows: u32,
+    /// Multiplies both evaluation intervals ([`KnnSmoother::set_sparseness`]).
+    sparseness: u32,
 }
 
 impl<T: Real> Default for KnnSmoother<T> {
@@ -69,7 +71,15 @@ impl<T: Real> KnnSmoother<T> {
             errors: [T::ZERO; MAX_NEIGHBOURS + 1],
             evaluations: T::ZERO,
             rows: 0,
+            sparseness: 1,
         }
+    }
+
+    /// Evaluates ε(K) `factor` times less often (at least 1): rows taken at every sample
+    /// instead of every fourth come four times as often, and ε(K) needs as many
+    /// evaluations per screening period, not per row.
+    pub fn set_sparseness(&mut self, factor: u32) {
+        self.sparseness = factor.max(1);
     }
 
     /// Rows between a value going in and its smoothed value coming out.
@@ -85,6 +95,7 @@ impl<T: Real> KnnSmoother<T> {
             errors: [T::ZERO; MAX_NEIGHBOURS + 1],
             evaluations: T::ZERO,
             rows: 0,
+            sparseness: 0,
         }
     }
 
@@ -170,7 +181,10 @@ impl<T: Real> KnnSmoother<T> {
         let own = self.at(centre);
         if !apply {
             self.rows = self.rows.wrapping_add(1);
-            if !self.rows.is_multiple_of(EVALUATE_EVERY_IDLE) {
+            if !self
+                .rows
+                .is_multiple_of(EVALUATE_EVERY_IDLE * self.sparseness)
+            {
                 return Some(own);
             }
             // Undo the count: the evaluation below counts the row itself.
@@ -199,7 +213,7 @@ impl<T: Real> KnnSmoother<T> {
             count += 1;
         }
         self.rows = self.rows.wrapping_add(1);
-        let evaluate = !apply || self.rows.is_multiple_of(EVALUATE_EVERY);
+        let evaluate = !apply || self.rows.is_multiple_of(EVALUATE_EVERY * self.sparseness);
         let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
         // Local Gram matrix Z (eq. 4) of the k_used nearest contexts.
         let mut diff = [[T::ZERO; 2]; MAX_NEIGHBOURS];

@@ -59,7 +59,25 @@ const DT: f64 = 0.002;
 const OMEGA: f64 = 2.0;
 
 /// The configuration benchmarked (see the module docs).
+#[cfg(not(feature = "bench-weak"))]
 pub fn config() -> Config {
+    base_config()
+}
+
+/// With `bench-weak`: what `lssi identify` chooses for this signal (the mean period of v,
+/// 1571 samples at 2 ms, gives `tuning::choose_test_rows` 520 rows and a 33-sample window).
+#[cfg(feature = "bench-weak")]
+pub fn config() -> Config {
+    Config {
+        window: 33,
+        derivative_degree: 5,
+        row_stride: 1,
+        test_rows: 520,
+        ..base_config()
+    }
+}
+
+fn base_config() -> Config {
     Config {
         sample_period: DT,
         window: WINDOW_CAPACITY - 1,

@@ -58,7 +58,8 @@ pub struct IdentifyArgs {
     #[arg(long, value_name = "SECONDS")]
     pub memory: Option<f64>,
     /// Experimental: take the noise of the derivative estimates out of the normal equations
-    /// (errors in variables; host only, the device protocol does not carry it)
+    /// (errors in variables; rows as they are, without the test-function sums; host only,
+    /// the device protocol does not carry it)
     #[arg(long)]
     pub noise_correction: bool,
     /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
