@@ -1,17 +1,19 @@
 #!/usr/bin/env bash
-# Cost, size and stack of lssi-core's identifier on the Cortex-M4F, as one table.
+# Cost, size and stack of lssi-core's identifier on the Cortex-M4F, as two tables.
 #
-#   scripts/firmware-bench.sh            # builds 3 images, runs 2 under QEMU (about 1 min)
+#   scripts/firmware-bench.sh            # builds 4 images, runs 3 under QEMU (about 1 min)
 #   LSSI_BENCH_RAW=1 scripts/firmware-bench.sh   # also print the firmware's raw lines
 #
 # The configuration is the device default: Identifier<f32, 256, 16, 2> (ring buffers for two
 # channels; the firmware's `three-channels` feature gives 3), x and a measured x',
 # window 255, the eq. 18 library (1, monomials of (x, x') to order 3, sin/cos(kΩt) for
 # k = 1..3), a screening every 10 000 samples; the signal is eq. 17, made on the device
-# (crates/lssi-firmware/src/bench_identifier.rs). Three release images of lssi-firmware:
+# (crates/lssi-firmware/src/bench_identifier.rs). Four release images of lssi-firmware:
 #   bench-identifier  30 000 samples through Identifier::push, each timed; flash and RAM
 #   bench-baseline    the same image without the identifier: the flash difference is its own
 #   bench-profile     the stages of a regression row timed one by one
+#   bench-weak        the stream again under the configuration `lssi identify` chooses for
+#                     this signal (test-function rows), printed as a second table
 # Costs are executed instructions: SysTick under `qemu-system-arm -icount shift=0` (one tick
 # = 40 instructions, calibrated at start-up). Stack is measured by painting: while streaming,
 # over the screenings, and while configuring the identifier in place in .bss (as lssi-device's

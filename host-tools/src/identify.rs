@@ -130,6 +130,9 @@ pub struct Report {
     pub window: usize,
     /// Local polynomial degree.
     pub degree: u8,
+    /// Rows per test function (the weak form; 0: rows as they are), one row per sample
+    /// when it is on.
+    pub test_rows: u16,
     /// Sample period, seconds.
     pub sample_period: f64,
     /// `f32` or `f64`.
@@ -489,6 +492,7 @@ pub fn report<T: Real, const P: usize>(
         rejected,
         window: config.window,
         degree: config.derivative_degree,
+        test_rows: config.test_rows,
         sample_period: config.sample_period,
         precision: precision.to_string(),
         model: model
@@ -549,11 +553,16 @@ pub fn render(report: &Report) -> String {
     out.push_str(&equation);
     out.push('\n');
     out.push_str(&format!(
-        "K: x = {}, v = {}   window: {} samples, degree {}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",
+        "K: x = {}, v = {}   window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",
         k_text(report.k.x),
         k_text(report.k.v),
         report.window,
         report.degree,
+        if report.test_rows > 0 {
+            format!(", test function {} samples", report.test_rows)
+        } else {
+            String::new()
+        },
         number(report.omega),
         if report.omega_estimated { " (estimated)" } else { "" },
         report.samples,

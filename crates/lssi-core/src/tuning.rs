@@ -124,13 +124,13 @@ pub struct TestRowsChoice {
 ///
 /// The test function spans a third of the mean period: long enough that the weighted sum
 /// of the target cancels its noise (the weights' second difference is small), short enough
-/// that the weights pass the motion's first harmonics (a (1 − τ²)⁴ bump over T/3 keeps
-/// 95 % of the fundamental and two thirds of the third harmonic). On eq. 17 (T ≈ 3150
-/// samples) halving it lost the weak x-only terms and doubling it the harmonics' detail; a
-/// third was the best of 512, 768, 1024 and 1536 samples on every seed. It is also at most
-/// a sixteenth of the samples, so that the fit has 64 sums at least. Rows are taken at
-/// every sample: summing rows a stride apart leaves the derivative filter's polyphase sums,
-/// which do not vanish, and the noise comes back.
+/// that the weights pass the motion's first harmonics. On eq. 17 (T ≈ 3150 samples, the
+/// zero-mean δ = 0.1 rows) a third was the best overall of 512, 768, 1024 and 1536 samples:
+/// at 512 the ε = 0.3 x-only rows lost their weak terms (32 %), at 1536 two ε = 1 x-only
+/// seeds took spurious terms. It is also at most a sixteenth of the samples, so that the
+/// fit has 64 sums at least. Rows are taken at every sample: summing rows a stride apart
+/// leaves the derivative filter's polyphase sums, which do not vanish, and the noise comes
+/// back.
 ///
 /// The derivative window is a sixteenth of the test function (odd, within the capacity
 /// `W`), degree 5: short, so that the library terms are evaluated on nearly unbent signals;
