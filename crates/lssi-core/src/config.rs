@@ -49,7 +49,8 @@ pub struct Config {
     /// k-neighbour smoothing of x and v (off only for the ablation).
     pub smoothing: bool,
     /// One regression row every `row_stride` samples (the rows of a smoothed signal a few
-    /// samples apart carry the same information).
+    /// samples apart carry the same information). With `test_rows`, 1: summed at a stride,
+    /// the derivative filter's noise does not cancel (see `test_rows`).
     pub row_stride: u16,
     /// MES parsimony: the sparsest solution whose held-out mean error is within this
     /// fraction of the least one is chosen.

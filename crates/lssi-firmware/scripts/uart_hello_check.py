@@ -16,10 +16,10 @@ import socket
 import sys
 import time
 
-PROTOCOL_VERSION = 2
-# HostMsg::Hello (variant 0) { protocol_version: varint 2 }
+PROTOCOL_VERSION = 3
+# HostMsg::Hello (variant 0) { protocol_version: varint 3 }
 HELLO = bytes([0x00, PROTOCOL_VERSION])
-# DeviceMsg::HelloReply (variant 0) { version 2, max_terms 16, window_capacity 256
+# DeviceMsg::HelloReply (variant 0) { version 3, max_terms 16, window_capacity 256
 # (varint 0x80 0x02), max_batch 24 }
 HELLO_REPLY = bytes([0x00, PROTOCOL_VERSION, 16, 0x80, 0x02, 24])
 
