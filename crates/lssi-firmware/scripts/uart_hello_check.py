@@ -101,7 +101,7 @@ def main() -> int:
     if payload != HELLO_REPLY:
         print(f"hello: unexpected reply {payload.hex()}, wanted {HELLO_REPLY.hex()}")
         return 1
-    print("hello ok: protocol 2, window capacity 256, 16 terms, batches of 24")
+    print(f"hello ok: protocol {PROTOCOL_VERSION}, window capacity 256, 16 terms, batches of 24")
     return 0
 
 
