@@ -604,6 +604,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         let row_period = c.sample_period * f64::from(c.row_stride);
         let step = c.omega * row_period;
         let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
+        let sqrt_lambda_row = libm::sqrt(lambda);
         for ring in rings.iter_mut() {
             ring.clear();
         }
@@ -633,9 +634,9 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         if c.test_rows == 0 {
             *collector = Collector::Block(Factor::new(n));
             *block_len = blocks;
-            *sqrt_lambda = T::from_f64(libm::sqrt(lambda));
+            *sqrt_lambda = T::from_f64(sqrt_lambda_row);
             // A's content at a merge is two blocks old.
-            *sqrt_lambda_blocks = T::from_f64(libm::pow(libm::sqrt(lambda), 2.0 * blocks as f64));
+            *sqrt_lambda_blocks = T::from_f64(libm::pow(sqrt_lambda_row, 2.0 * blocks as f64));
         } else {
             // λ and the blocks count in sums (one every L/4 rows); a block of eight sums
             // spans two test functions, so that A's and B's rows share little of the data.
@@ -643,7 +644,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             // one block old.
             let mut sums = TestRows::zeroed();
             sums.configure(c.test_rows);
-            let sqrt_lambda_sum = libm::pow(libm::sqrt(lambda), f64::from(sums.quarter()));
+            let sqrt_lambda_sum = libm::pow(sqrt_lambda_row, f64::from(sums.quarter()));
             *collector = Collector::Sums(sums);
             *block_len = TEST_BLOCK;
             *sqrt_lambda = T::from_f64(sqrt_lambda_sum);
@@ -653,7 +654,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         *long_v2 = T::ZERO;
         *long_weight = T::ZERO;
         *short_alpha = T::ONE / T::from_usize(blocks as usize);
-        let sqrt_lambda_one = T::from_f64(libm::sqrt(lambda));
+        let sqrt_lambda_one = T::from_f64(sqrt_lambda_row);
         *row_lambda = sqrt_lambda_one * sqrt_lambda_one;
         *warm_rows = T::from_usize(blocks as usize);
         *x_min = T::MAX;
@@ -1267,17 +1268,17 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         if offsets && x_closed {
             self.equilibria(&w.all, &mut w.m, &mut candidates);
         }
-        // The best so far: its size, error and origin; its model is published at once (into
-        // `self.model`, whose memory exists anyway) instead of keeping its sweep on the stack.
+        // The best so far: its support, error and origin; its model is published at once
+        // (into `self.model`, whose memory exists anyway) instead of keeping its sweep on the
+        // stack.
         let mut best: Option<(u32, T, T)> = None;
         // The sweep at the origin so far, filled in place (a returned sweep was another copy
         // on the stack).
         let mut result = screen::Sweep::new();
-        let constant = self
-            .library
-            .terms()
-            .iter()
-            .position(|t| *t == Term::Constant);
+        // Whether a support holds the constant term: a misplaced origin shows first as a
+        // static force at the data's zero, f(−c) ≈ c·f'(0).
+        let constant = self.library.index_of(Term::Constant);
+        let holds_constant = |support: u32| constant.is_some_and(|k| support & (1u32 << k) != 0);
         // `next` (counted from 1) of the candidate from the selected model, if any.
         let mut from_selected = usize::MAX;
         let mut next = 0;
@@ -1291,13 +1292,12 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             // The dense model's equilibria are poorly determined (the constant and the even
             // powers are nearly collinear, and with test-function rows the harmonics too):
             // the model selected at the recording's own origin gives one more candidate, if
-            // it holds the constant term (a misplaced origin shows as a static force at the
-            // data's zero, f(−c) ≈ c·f'(0); see below).
+            // it holds the constant term.
             if offsets
                 && x_closed
                 && start == T::ZERO
                 && let Some(selected) = result.chosen()
-                && constant.is_some_and(|k| selected.support & (1u32 << k) != 0)
+                && holds_constant(selected.support)
                 && let Some(step) = self.refine_origin(offset_v, c, selected.support, &mut w)
                 && step != T::ZERO
                 && candidates.push(step).is_ok()
@@ -1368,11 +1368,12 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             // same error); else the lesser error.
             let better = match &best {
                 None => true,
-                Some((len, err, at)) => {
+                Some((support, err, at)) => {
+                    let len = support.count_ones();
                     let near = (selected.mean_error - *err).abs()
                         <= T::from_f64(ORIGIN_TIE) * selected.mean_error.min(*err);
-                    selected.len() < *len
-                        || (selected.len() == *len
+                    selected.len() < len
+                        || (selected.len() == len
                             && if near {
                                 c.abs() < at.abs()
                             } else {
@@ -1381,7 +1382,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
                 }
             };
             if better {
-                best = Some((selected.len(), selected.mean_error, c));
+                best = Some((selected.support, selected.mean_error, c));
                 self.publish(&result, c, offset_v);
             }
         }
@@ -1390,23 +1391,19 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         // the model with it; then sweep at the origin reached, which wins if it selects
         // fewer terms. With test-function rows the fit is sharp enough that an origin off
         // by 5 % of the offset keeps five spurious terms, more than the steps above remove.
-        // Once, on the best model, and only if it holds the constant term: a misplaced
-        // origin shows first as a static force at the data's zero, f(−c) ≈ c·f'(0) (each
-        // try is a golden-section search, 0.4 M instructions on the M4F).
+        // Once, on the best model, and only if it holds the constant term (each try is a
+        // golden-section search, 0.4 M instructions on the M4F).
         if offsets
             && x_closed
-            && let Some((len, _, at)) = best
-            && let Some(constant) = constant
-            && let Some(support) = self
-                .model
-                .as_ref()
-                .and_then(|m| m.solutions.get(m.selected))
-                .map(|s| s.support)
-            && support & (1u32 << constant) != 0
+            && let Some((support, _, at)) = best
+            && holds_constant(support)
             && let Some(c2) = self.shed_by_shift(offset_v, at, support, parsimony, &mut w)
         {
             self.sweep_at(offset_v, c2, &mut w, grid, parsimony, &mut result);
-            if result.chosen().is_some_and(|t| t.len() < len) {
+            if result
+                .chosen()
+                .is_some_and(|t| t.len() < support.count_ones())
+            {
                 self.publish(&result, c2, offset_v);
             }
         }
@@ -1715,6 +1712,16 @@ mod tests {
     use super::*;
     use crate::{Channels, ConfigError, LibraryConfig, PolyFamily};
 
+    /// x and a measured v; x and a measured u.
+    const XV: Channels = Channels {
+        velocity: true,
+        input: false,
+    };
+    const XU: Channels = Channels {
+        velocity: false,
+        input: true,
+    };
+
     /// A forced Duffing oscillator x'' = −400x − 2x' − 4·10⁴x³ + u, u = 60 cos(15t), by RK4
     /// (10 steps a sample of 1 ms): `n` samples of (t, x, v, u).
     fn duffing(n: usize) -> Vec<(f64, f64, f64, f64)> {
@@ -1829,14 +1836,6 @@ mod tests {
     /// share their memory) gives the models of a new one, bit for bit, both ways.
     #[test]
     fn test_function_rows_identify_and_switch_cleanly() {
-        let xu = Channels {
-            velocity: false,
-            input: true,
-        };
-        let xv = Channels {
-            velocity: true,
-            input: false,
-        };
         let sums = |channels| Config {
             window: 9,
             derivative_degree: 5,
@@ -1844,10 +1843,10 @@ mod tests {
             test_rows: 140,
             ..config(channels)
         };
-        let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(sums(xu)) else {
+        let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(sums(XU)) else {
             panic!("valid");
         };
-        let with_sums = models_of(&mut id, xu, 12_000);
+        let with_sums = models_of(&mut id, XU, 12_000);
         let model = id.model().expect("a model");
         for (term, truth) in [
             (Term::Monomial { px: 1, pv: 0 }, -400.0),
@@ -1862,24 +1861,16 @@ mod tests {
             );
         }
         // Sums, then rows as they are, in place: the models of a new identifier.
-        assert!(id.reconfigure(config(xv)).is_ok());
-        assert_eq!(models_of(&mut id, xv, 12_000), models::<3>(xv, 12_000));
+        assert!(id.reconfigure(config(XV)).is_ok());
+        assert_eq!(models_of(&mut id, XV, 12_000), models::<3>(XV, 12_000));
         // And back.
-        assert!(id.reconfigure(sums(xu)).is_ok());
-        assert_eq!(models_of(&mut id, xu, 12_000), with_sums);
+        assert!(id.reconfigure(sums(XU)).is_ok());
+        assert_eq!(models_of(&mut id, XU, 12_000), with_sums);
     }
 
     #[test]
     fn configured_in_place_gives_the_models_of_new_bit_for_bit() {
-        let xv = Channels {
-            velocity: true,
-            input: false,
-        };
-        let xu = Channels {
-            velocity: false,
-            input: true,
-        };
-        let reference = models::<3>(xv, 12_000);
+        let reference = models::<3>(XV, 12_000);
         // A slot, configured first for something else (x and u, a shorter window, no
         // harmonics, forgetting) and run, then configured again in place.
         let mut slot: Box<IdentifierSlot<f32, 128, 16, 3>> = Box::default();
@@ -1887,38 +1878,38 @@ mod tests {
         let other = Config {
             window: 41,
             memory: Some(2.0),
-            ..config(xu)
+            ..config(XU)
         };
         let Ok(id) = slot.configure(other) else {
             panic!("the other configuration is valid");
         };
-        assert_eq!(models_of(id, xu, 11_000).len(), 3);
+        assert_eq!(models_of(id, XU, 11_000).len(), 3);
         // A refused configuration changes nothing: the slot keeps its identifier and state.
         let counters = *id.counters();
         let bad = Config {
             window: 129,
-            ..config(xv)
+            ..config(XV)
         };
         assert!(slot.configure(bad).is_err());
         let Some(id) = slot.get_mut() else {
             panic!("still configured");
         };
         assert_eq!((*id.config(), *id.counters()), (other, counters));
-        let Ok(id) = slot.configure(config(xv)) else {
+        let Ok(id) = slot.configure(config(XV)) else {
             panic!("valid");
         };
         assert!(id.model().is_none());
         assert_eq!(id.counters(), &Counters::default());
-        assert_eq!(models_of(id, xv, 12_000), reference);
+        assert_eq!(models_of(id, XV, 12_000), reference);
         // `reconfigure` on a used identifier, and `new` on top of the same path.
         let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(other) else {
             panic!("valid");
         };
-        let _ = models_of(&mut id, xu, 7_000);
+        let _ = models_of(&mut id, XU, 7_000);
         assert!(id.reconfigure(bad).is_err());
         assert_eq!(id.config(), &other);
-        assert!(id.reconfigure(config(xv)).is_ok());
-        assert_eq!(models_of(&mut id, xv, 12_000), reference);
+        assert!(id.reconfigure(config(XV)).is_ok());
+        assert_eq!(models_of(&mut id, XV, 12_000), reference);
     }
 
     #[test]
@@ -1954,13 +1945,9 @@ mod tests {
              was built with ring buffers for 2"
         );
         assert!(Identifier::<f32, 128, 16, 3>::new(config(all)).is_ok());
-        let xv = Channels {
-            velocity: true,
-            input: false,
-        };
-        assert!(Identifier::<f32, 128, 16, 2>::new(config(xv)).is_ok());
+        assert!(Identifier::<f32, 128, 16, 2>::new(config(XV)).is_ok());
         assert_eq!(
-            Identifier::<f32, 128, 16, 1>::new(config(xv)).err(),
+            Identifier::<f32, 128, 16, 1>::new(config(XV)).err(),
             Some(ConfigError::Channels {
                 channels: 2,
                 capacity: 1
@@ -1971,16 +1958,7 @@ mod tests {
 
     #[test]
     fn two_rings_give_the_models_of_three_bit_for_bit() {
-        for channels in [
-            Channels {
-                velocity: true,
-                input: false,
-            },
-            Channels {
-                velocity: false,
-                input: true,
-            },
-        ] {
+        for channels in [XV, XU] {
             let three = models::<3>(channels, 20_000);
             assert_eq!(three.len(), 5, "{channels:?}");
             assert_eq!(models::<2>(channels, 20_000), three, "{channels:?}");

@@ -69,19 +69,16 @@ impl<T: Real, const P: usize> TestRows<T, P> {
             self.step = T::from_f64(1.0 / l);
             self.inverse_norm = T::from_f64(1.0 / sum);
         }
-        self.restart();
+        // Nothing summed yet. A gap in the data does not start the sums again: each is a
+        // weighted sum of rows, which satisfies the equation whatever rows it holds.
+        self.phase = 0;
+        self.columns = [[T::ZERO; P]; 4];
+        self.targets = [T::ZERO; 4];
     }
 
     /// Rows between two completed sums.
     pub fn quarter(&self) -> u32 {
         self.quarter
-    }
-
-    /// Drops the partial sums: after a gap in time a sum would join unrelated stretches.
-    pub fn restart(&mut self) {
-        self.phase = 0;
-        self.columns = [[T::ZERO; P]; 4];
-        self.targets = [T::ZERO; 4];
     }
 
     /// Adds a row (its first `n` columns and its target) to the sums it falls in; a sum
@@ -140,18 +137,18 @@ mod tests {
     }
 
     /// A linear ramp's weighted mean is its value at the window's centre (φ is symmetric),
-    /// and a restart drops what was summed before it.
+    /// and configuring anew drops what was summed before.
     #[test]
-    fn symmetric_weights_and_restart() {
+    fn symmetric_weights_and_reconfigure() {
         let mut t: TestRows<f64, 2> = TestRows::zeroed();
         t.configure(8);
         let mut out = std::vec::Vec::new();
         for r in 0..5 {
             t.push(&[1e6, 0.0], 0.0, 1, |_, _| {
-                panic!("emitted before a restart {r}")
+                panic!("emitted before configuring anew {r}")
             });
         }
-        t.restart();
+        t.configure(8);
         for r in 0..8 {
             t.push(&[r as f64, 0.0], 0.0, 1, |c, _| out.push(c[0]));
         }
