@@ -4,3 +4,5 @@
 set -euo pipefail
 rustup target add thumbv7em-none-eabihf
 rustup component add llvm-tools rustfmt clippy
+# The Python package in .venv (maturin, numpy, pandas, dask, pytest; the `lssi` command too).
+bash "$(dirname "$0")/setup-python.sh"
