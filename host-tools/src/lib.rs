@@ -40,6 +40,7 @@ pub mod noise;
 pub mod ode;
 pub mod plot;
 pub mod recording;
+pub mod refine;
 pub mod replay;
 pub mod simulate;
 pub mod telemetry;
