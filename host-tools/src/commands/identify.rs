@@ -33,6 +33,15 @@ pub struct IdentifyArgs {
     /// The recording: CSV with a header row naming at least t and x.
     #[arg(value_name = "FILE.csv")]
     pub file: PathBuf,
+    /// More recordings (or folders, each meaning its *.csv files): identified in parallel on
+    /// every core, one JSON line (--json) or one CSV row (--csv) per file; a file that fails
+    /// gets its error in its row, and the exit code is 2 if any did.
+    #[arg(value_name = "MORE.csv", num_args = 0..)]
+    pub more: Vec<PathBuf>,
+    /// With several recordings: a CSV table (file, equation, terms, coefficients, samples,
+    /// rejected, error) instead of text.
+    #[arg(long, conflicts_with = "json")]
+    pub csv: bool,
     /// Base excitation frequency Ω in rad/s (default: estimated from the data).
     #[arg(long, value_name = "RAD_PER_S")]
     pub omega: Option<f64>,
@@ -199,6 +208,9 @@ impl IdentifyArgs {
 pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
     args.check_track_flags()?;
+    if !args.more.is_empty() || args.file.is_dir() || args.csv {
+        return super::batch::run(args, &options);
+    }
     let recording = Recording::read(&args.file, &args.columns)?;
     if args.track {
         return run_track(args, &recording, &options);
