@@ -31,6 +31,11 @@ use serde::Serialize;
 
 use crate::simulate::{SimModel, evaluate};
 
+/// Samples `[a, b)` of a recording.
+type Span = (usize, usize);
+/// A state (x, x').
+type State = (f64, f64);
+
 /// A recording, or a stretch of it.
 #[derive(Clone, Copy, Debug)]
 pub struct Data<'a> {
@@ -529,7 +534,7 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
         let mut sorted = rms.clone();
         sorted.sort_by(f64::total_cmp);
         let median = sorted[sorted.len() / 2];
-        let (kept, states): (Vec<(usize, usize)>, Vec<(f64, f64)>) = segs
+        let (kept, states): (Vec<Span>, Vec<State>) = segs
             .iter()
             .zip(&fitted.states)
             .zip(&rms)
@@ -605,6 +610,15 @@ pub fn prediction_fit(model: &SimModel, data: &Data, segment: usize) -> Option<F
     let segs = segments(0, data.len(), segment.min(data.len()));
     let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
     Some(fit_of(s.rss, data.x))
+}
+
+/// A free run of `model` over all of `data` from the initial state fitted on its first
+/// `segment` samples (fitting one state to a long free run lands in local minima).
+pub fn free_run_after_fitted_start(model: &SimModel, data: &Data, segment: usize) -> Option<Fit> {
+    let (shape, c) = Shape::of(model);
+    let first = [(0, segment.min(data.len()))];
+    let start = least_squares(&shape, &c, data, &first, true, 20, None)?;
+    free_run_fit(model, data, *start.states.first()?)
 }
 
 /// A free run of `model` on `data` from rest (x₀ = v₀ = 0 in recording coordinates) or from
@@ -703,7 +717,7 @@ pub fn refine_and_check(model: &SimModel, data: &Data) -> Check {
         },
         None => (model.clone(), None, Chosen::Streaming),
     };
-    let free_run = prediction_fit(&model, &held, usize::MAX);
+    let free_run = free_run_after_fitted_start(&model, &held, settings.segment);
     Check {
         model,
         standard_errors,
@@ -712,6 +726,101 @@ pub fn refine_and_check(model: &SimModel, data: &Data) -> Check {
         held_out: [held_streaming, held_refined],
         free_run,
         samples_per_period: samples_per_period_at_top(data.x),
+    }
+}
+
+/// One refined term, as `lssi identify --refine` reports it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TermSummary {
+    /// Name (`x`, `x^3`, `cos(21.4t)`, …).
+    pub term: String,
+    /// Coefficient in physical units.
+    pub coef: f64,
+    /// Its standard error (absent for the streaming model).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub se: Option<f64>,
+}
+
+/// The `"refined"` object of `lssi identify --refine --json`.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Summary {
+    /// `refined` or `streaming`.
+    pub chosen: Chosen,
+    /// Why, in one sentence.
+    pub reason: String,
+    /// The reported model's terms, with standard errors when refined.
+    pub terms: Vec<TermSummary>,
+    /// Held-out simulation error of the streaming model (segments of a few periods, each
+    /// from its own fitted initial state).
+    pub held_out_streaming: Option<Fit>,
+    /// The same for the model refined on the first half.
+    pub held_out_refined: Option<Fit>,
+    /// The reported model's free run over the held-out half (one fitted initial state).
+    pub free_run: Option<Fit>,
+    /// Samples per period at the top of x's band (under ~20: derivatives are biased, which
+    /// is what refinement corrects).
+    pub samples_per_period: Option<f64>,
+}
+
+impl Summary {
+    /// The summary of a check, terms named at Ω = `omega`.
+    pub fn of(check: &Check, omega: f64) -> Self {
+        let terms = check
+            .model
+            .terms
+            .iter()
+            .enumerate()
+            .map(|(j, (term, coef))| TermSummary {
+                term: term.name(omega).to_string(),
+                coef: *coef,
+                se: check
+                    .standard_errors
+                    .as_ref()
+                    .and_then(|se| se.get(j).copied()),
+            })
+            .collect();
+        Self {
+            chosen: check.chosen,
+            reason: check.reason.clone(),
+            terms,
+            held_out_streaming: check.held_out[0],
+            held_out_refined: check.held_out[1],
+            free_run: check.free_run,
+            samples_per_period: check.samples_per_period,
+        }
+    }
+
+    /// Lines for the text report, `unit` the recording's unit of x.
+    pub fn render(&self, unit: &str) -> String {
+        let mut out = String::new();
+        let body: Vec<String> = self
+            .terms
+            .iter()
+            .map(|t| match t.se {
+                Some(se) => format!("({:.6e} ± {:.2e}) {}", t.coef, se, t.term),
+                None => format!("{:.6e} {}", t.coef, t.term),
+            })
+            .collect();
+        let label = match self.chosen {
+            Chosen::Refined => "refined on simulation error",
+            Chosen::Streaming => "the streaming model (not refined)",
+        };
+        out.push_str(&format!("\n{label}: x'' = {}\n", body.join(" + ")));
+        out.push_str(&format!("  {}\n", self.reason));
+        if let Some(f) = self.free_run {
+            out.push_str(&format!(
+                "  free run over the held-out half: NRMSE {:.2} %, RMS {:.4e} {unit}\n",
+                f.nrmse_percent, f.rms
+            ));
+        }
+        if let Some(spp) = self.samples_per_period
+            && spp < 20.0
+        {
+            out.push_str(&format!(
+                "  coarse sampling: {spp:.1} samples per period at the top of the band (derivatives from samples are biased there; the refined model is not)\n"
+            ));
+        }
+        out
     }
 }
 

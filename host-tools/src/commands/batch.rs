@@ -105,11 +105,14 @@ pub fn run(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
         let file = path.display().to_string();
         match (result, args.json, args.csv) {
             (Ok(report), true, _) => {
-                let mut object = serde_json::to_value(report).unwrap_or_default();
-                if let Some(map) = object.as_object_mut() {
-                    map.insert("file".into(), file.into());
-                }
-                out.push_str(&object.to_string());
+                // "file" first, then the report's fields in the order `lssi identify --json`
+                // prints them.
+                let body = serde_json::to_string(report).unwrap_or_default();
+                out.push_str(&format!(
+                    "{{\"file\":{},{}",
+                    serde_json::Value::from(file),
+                    body.get(1..).unwrap_or("}")
+                ));
                 out.push('\n');
             }
             (Err(error), true, _) => {
