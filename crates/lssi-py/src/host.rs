@@ -3,48 +3,15 @@
 
 use std::path::PathBuf;
 
-use lssi_core::{Config, Identifier, PolyFamily, Real, Sample};
+use lssi_core::{Config, Identifier, Real, Sample};
+pub use lssi_host::identify::Options;
 pub use lssi_host::identify::Report;
-use lssi_host::identify::{self, Options, TERM_CAPACITY};
+use lssi_host::identify::{self, TERM_CAPACITY};
 use lssi_host::recording::{ColumnNames, Recording};
 use lssi_host::simulate::{self, SimModel};
 
 /// The ring-buffer capacity `lssi identify` runs with.
 pub use lssi_host::identify::WINDOW_CAPACITY;
-
-/// The options of `lssi identify` that the package exposes.
-#[derive(Clone, Debug)]
-pub struct FitOptions {
-    /// `--omega` (None: estimated from the data).
-    pub omega: Option<f64>,
-    /// `--harmonics`.
-    pub harmonics: u8,
-    /// `--poly-order`.
-    pub poly_order: u8,
-    /// `--family`: "all", "families" or "odd".
-    pub family: PolyFamily,
-    /// `--f32` (true) or `--f64`.
-    pub f32: bool,
-    /// `--no-smoothing` when false.
-    pub smoothing: bool,
-    /// `--memory` (seconds).
-    pub memory: Option<f64>,
-}
-
-impl FitOptions {
-    fn options(&self) -> Options {
-        Options {
-            omega: self.omega,
-            harmonics: self.harmonics,
-            poly_order: self.poly_order,
-            family: self.family,
-            f32: self.f32,
-            smoothing: self.smoothing,
-            memory: self.memory,
-            noise_correction: false,
-        }
-    }
-}
 
 /// The columns of a recording held in memory.
 pub struct Columns {
@@ -91,7 +58,7 @@ pub fn read(path: &str) -> Result<Columns, String> {
 }
 
 /// `lssi identify`'s configuration for these columns and options, and whether Ω was estimated.
-pub fn configure(c: &Columns, options: &FitOptions) -> Result<(Config, bool), String> {
+pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), String> {
     let r = recording(Columns {
         name: c.name.clone(),
         t: c.t.clone(),
@@ -99,13 +66,13 @@ pub fn configure(c: &Columns, options: &FitOptions) -> Result<(Config, bool), St
         v: c.v.clone(),
         u: c.u.clone(),
     });
-    identify::configure(&r, &options.options()).map_err(|e| e.0)
+    identify::configure(&r, options).map_err(|e| e.0)
 }
 
 /// `lssi identify` on columns: its report (the `--json` object) and the configuration.
-pub fn fit(c: Columns, options: &FitOptions) -> Result<(Report, Config), String> {
+pub fn fit(c: Columns, options: &Options) -> Result<(Report, Config), String> {
     let r = recording(c);
-    let (config, estimated) = identify::configure(&r, &options.options()).map_err(|e| e.0)?;
+    let (config, estimated) = identify::configure(&r, options).map_err(|e| e.0)?;
     let report = if options.f32 {
         identify::run::<f32>(&r, config, estimated)
     } else {
@@ -184,7 +151,13 @@ pub fn feature_names(config: &Config) -> Vec<String> {
 
 /// A free run of the report's model on the grid `t` from (x0, v0), with the excitation `u`
 /// interpolated between samples when the model has a `u` term.
-pub fn simulate(report: &Report, t: &[f64], u: Option<&[f64]>, x0: f64, v0: f64) -> (Vec<f64>, Vec<f64>) {
+pub fn simulate(
+    report: &Report,
+    t: &[f64],
+    u: Option<&[f64]>,
+    x0: f64,
+    v0: f64,
+) -> (Vec<f64>, Vec<f64>) {
     let model = SimModel::from_report(report);
     let s = simulate::simulate(&model, t, u, (x0, v0), 4);
     (s.x, s.v)

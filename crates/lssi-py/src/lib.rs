@@ -10,7 +10,7 @@ use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use host::{Columns, FitOptions, HostIdentifier, Report};
+use host::{Columns, HostIdentifier, Options, Report};
 
 fn value_error(message: String) -> PyErr {
     PyValueError::new_err(message)
@@ -36,8 +36,8 @@ fn options(
     f32: bool,
     smoothing: bool,
     memory: Option<f64>,
-) -> PyResult<FitOptions> {
-    Ok(FitOptions {
+) -> PyResult<Options> {
+    Ok(Options {
         omega,
         harmonics,
         poly_order,
@@ -45,6 +45,7 @@ fn options(
         f32,
         smoothing,
         memory,
+        noise_correction: false,
     })
 }
 
@@ -138,7 +139,7 @@ fn fit(
     run(py, columns, &options)
 }
 
-fn run(py: Python<'_>, columns: Columns, options: &FitOptions) -> PyResult<Fit> {
+fn run(py: Python<'_>, columns: Columns, options: &Options) -> PyResult<Fit> {
     let (report, config) = py
         .detach(|| host::fit(columns, options))
         .map_err(value_error)?;
@@ -233,7 +234,11 @@ impl RawStream {
     /// fit on the same samples).
     #[staticmethod]
     fn like(fit: &Fit) -> PyResult<Self> {
-        Self::with(fit.config, fit.report.precision == "f32", fit.omega_estimated)
+        Self::with(
+            fit.config,
+            fit.report.precision == "f32",
+            fit.omega_estimated,
+        )
     }
 
     /// A streaming identifier configured as `lssi identify` would configure it for a
