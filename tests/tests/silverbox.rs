@@ -20,7 +20,10 @@ fn columns(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let text = std::fs::read_to_string(path).expect("the Silverbox file reads");
     let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
     for line in text.lines().skip(1) {
-        let f: Vec<f64> = line.split(',').map(|s| s.trim().parse().expect("a number")).collect();
+        let f: Vec<f64> = line
+            .split(',')
+            .map(|s| s.trim().parse().expect("a number"))
+            .collect();
         t.push(f[1]);
         u.push(f[2]);
         y.push(f[3]);
@@ -61,11 +64,19 @@ fn silverbox_refined_equation_simulates_the_test_multisine_within_a_millivolt() 
     let (config, estimated) = identify::configure(&train, &options).expect("configures");
     let report = identify::run::<f32>(&train, config, estimated).expect("identifies");
     let streaming = SimModel::from_report(&report);
-    let data = Data { t: &t[a..b], x: &y[a..b], u: Some(&u[a..b]) };
+    let data = Data {
+        t: &t[a..b],
+        x: &y[a..b],
+        u: Some(&u[a..b]),
+    };
     let settings = refine::Settings::for_data(&data);
     let refined = refine::refine(&streaming, &data, &settings).expect("refines");
     let rms_mv = |model: &SimModel, (c, d): (usize, usize)| {
-        let part = Data { t: &t[c..d], x: &y[c..d], u: Some(&u[c..d]) };
+        let part = Data {
+            t: &t[c..d],
+            x: &y[c..d],
+            u: Some(&u[c..d]),
+        };
         refine::free_run_fit(model, &part, (0.0, 0.0)).map_or(f64::INFINITY, |f| 1e3 * f.rms)
     };
     let parts = [
@@ -76,7 +87,11 @@ fn silverbox_refined_equation_simulates_the_test_multisine_within_a_millivolt() 
     println!("| Silverbox, simulated from u alone (x0 = v0 = 0), RMS mV | streaming | refined |");
     println!("|---|---:|---:|");
     for (label, span) in parts {
-        println!("| {label} | {:.3} | {:.3} |", rms_mv(&streaming, span), rms_mv(&refined.model, span));
+        println!(
+            "| {label} | {:.3} | {:.3} |",
+            rms_mv(&streaming, span),
+            rms_mv(&refined.model, span)
+        );
     }
     let names: Vec<String> = refined
         .model
@@ -85,8 +100,14 @@ fn silverbox_refined_equation_simulates_the_test_multisine_within_a_millivolt() 
         .zip(&refined.standard_errors)
         .map(|((term, c), se)| format!("{c:.6e} ± {se:.2e} {}", term.name(0.0)))
         .collect();
-    println!("refined: x'' = {}  ({} iterations)", names.join(" + "), refined.iterations);
-    println!("published (test multisine): NARX FROLS 7.7 mV; continuous-time Duffing refined on simulation error ~1 mV; deep state-space ~0.4 mV");
+    println!(
+        "refined: x'' = {}  ({} iterations)",
+        names.join(" + "),
+        refined.iterations
+    );
+    println!(
+        "published (test multisine): NARX FROLS 7.7 mV; continuous-time Duffing refined on simulation error ~1 mV; deep state-space ~0.4 mV"
+    );
     let test = rms_mv(&refined.model, parts[0].1);
     assert!(test <= 1.0, "test multisine RMS {test:.3} mV > 1 mV");
 }
