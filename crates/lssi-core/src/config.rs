@@ -55,7 +55,7 @@ pub struct Config {
     /// MES parsimony: the sparsest solution whose held-out mean error is within this
     /// fraction of the least one is chosen.
     pub parsimony: f64,
-    /// Estimate and remove the sensor offsets of x and v (DESIGN.md, "Sensor offsets").
+    /// Estimate and remove the sensor offsets of x and v (docs/design.md, "Sensor offsets").
     pub offsets: bool,
     /// A sample whose |x|, |v| or |u| exceeds this is absurd and rejected.
     pub max_abs: f64,

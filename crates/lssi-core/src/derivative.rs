@@ -1,5 +1,5 @@
 //! Fixed-lag local polynomial (Savitzky–Golay) estimates of x, x' and x'' from a window of
-//! equally spaced samples (DESIGN.md, "Derivatives").
+//! equally spaced samples (docs/design.md, "Derivatives").
 //!
 //! A polynomial of degree `p` is fitted by least squares to the last `N` samples and
 //! evaluated, with its first two derivatives, at the window's centre, so the estimates lag

@@ -1,4 +1,4 @@
-//! Recursive least squares in square-root information form (DESIGN.md, "RLS").
+//! Recursive least squares in square-root information form (docs/design.md, "RLS").
 //!
 //! The weighted least-squares problem min Σ λ^age (y − θᵀξ)² is kept as an upper-triangular
 //! factor R, a vector z and the residual energy ρ², with RᵀR = Σ λ^age θθᵀ and Rᵀz = Σ λ^age θy.

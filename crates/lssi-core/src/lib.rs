@@ -3,7 +3,7 @@
 //! Recovers a vibration energy harvester's equation of motion x'' = f(x, x', t) from its
 //! displacement signal, sample by sample, in fixed memory, with no allocator: the LSSI
 //! algorithm (Li, Wang & Wang 2020) made streaming. See [`Identifier`] for the pipeline and
-//! a runnable example, and DESIGN.md for the decisions the paper leaves open.
+//! a runnable example, and docs/design.md for the decisions the paper leaves open.
 //!
 //! `#![no_std]`, no `alloc`, no panics on data: a bad sample is a counted [`Rejection`].
 //! Generic over [`Real`] (`f32` on a device, `f64` as the host's reference); every

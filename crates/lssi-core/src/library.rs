@@ -376,7 +376,7 @@ impl<const P: usize> Library<P> {
     }
 
     /// Whether every lower monomial a shift of x (and of v) produces is in the library, so
-    /// that moving the coordinate origin is a linear map of the columns (DESIGN.md, "Sensor
+    /// that moving the coordinate origin is a linear map of the columns (docs/design.md, "Sensor
     /// offsets"). Returns (x-shift closed, v-shift closed).
     pub fn shift_closed(&self) -> (bool, bool) {
         let has = |px: u8, pv: u8| {

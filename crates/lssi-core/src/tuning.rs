@@ -1,4 +1,4 @@
-//! Data-driven choice of the derivative window (DESIGN.md, "Derivatives"): no hand-set
+//! Data-driven choice of the derivative window (docs/design.md, "Derivatives"): no hand-set
 //! window, as there is no hand-set K.
 //!
 //! The target x'' is estimated by a local polynomial of degree p over N samples. A longer
