@@ -1,5 +1,7 @@
 //! `lssi identify FILE...`: many recordings, identified in parallel on every core (rayon),
-//! one result per file in the order given: a JSON line (`--json`), a CSV row (`--csv`), or
+//! one result per file in the order given: a JSON line (`--json`: the report of `lssi identify
+//! --json` with "file" first and "warnings" last), a CSV row (`--csv`: file, equation, terms,
+//! coefficients, the selected model's held-out error, samples, rejected, warnings, error), or
 //! the text report under the file's name. A file that fails gets its error in its row; the
 //! others go on, and the exit code is 2 if any failed.
 
@@ -57,6 +59,20 @@ fn equation(report: &Report) -> String {
         .to_owned()
 }
 
+/// The rejected samples as `lssi identify` warns of them: the first five, then a count.
+fn warnings(report: &Report) -> Vec<String> {
+    const NAMED: usize = 5;
+    let mut out: Vec<String> = report.rejections.iter().take(NAMED).cloned().collect();
+    if report.rejections.len() > NAMED {
+        out.push(format!(
+            "{} more samples were left out ({} in all)",
+            report.rejections.len() - NAMED,
+            report.rejections.len()
+        ));
+    }
+    out
+}
+
 fn csv_field(text: &str) -> String {
     if text.contains([',', '"', '\n']) {
         format!("\"{}\"", text.replace('"', "\"\""))
@@ -99,7 +115,9 @@ pub fn run(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
     bar.finish_and_clear();
     let mut out = String::new();
     if args.csv {
-        out.push_str("file,equation,terms,coefficients,samples,rejected,error\n");
+        out.push_str(
+            "file,equation,terms,coefficients,held_out_error,samples,rejected,warnings,error\n",
+        );
     }
     for (path, result) in files.iter().zip(&results) {
         let file = path.display().to_string();
@@ -107,11 +125,14 @@ pub fn run(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
             (Ok(report), true, _) => {
                 // "file" first, then the report's fields in the order `lssi identify --json`
                 // prints them.
-                let body = serde_json::to_string(report).unwrap_or_default();
+                // prints them, then the warnings (rejected samples) it prints on stderr.
+                let mut body = serde_json::to_string(report).unwrap_or_default();
+                body.pop();
                 out.push_str(&format!(
-                    "{{\"file\":{},{}",
+                    "{{\"file\":{},{},\"warnings\":{}}}",
                     serde_json::Value::from(file),
-                    body.get(1..).unwrap_or("}")
+                    body.get(1..).unwrap_or_default(),
+                    serde_json::Value::from(warnings(report))
                 ));
                 out.push('\n');
             }
@@ -123,18 +144,29 @@ pub fn run(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
                 let terms: Vec<&str> = report.terms.iter().map(|t| t.term.as_str()).collect();
                 let coefficients: Vec<String> =
                     report.terms.iter().map(|t| t.coef.to_string()).collect();
+                let fit = report
+                    .solutions
+                    .get(report.selected)
+                    .map(|s| s.mean_error.to_string())
+                    .unwrap_or_default();
                 out.push_str(&format!(
-                    "{},{},{},{},{},{},\n",
+                    "{},{},{},{},{},{},{},{},\n",
                     csv_field(&file),
                     csv_field(&equation(report)),
                     csv_field(&terms.join(" ")),
                     csv_field(&coefficients.join(" ")),
+                    fit,
                     report.samples,
-                    report.rejected
+                    report.rejected,
+                    csv_field(&warnings(report).join(" "))
                 ));
             }
             (Err(error), false, true) => {
-                out.push_str(&format!("{},,,,,,{}\n", csv_field(&file), csv_field(error)));
+                out.push_str(&format!(
+                    "{},,,,,,,,{}\n",
+                    csv_field(&file),
+                    csv_field(error)
+                ));
             }
             (Ok(report), false, false) => {
                 out.push_str(&format!("== {file}\n{}\n", identify::render(report)));
