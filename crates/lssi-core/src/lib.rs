@@ -26,7 +26,7 @@ pub mod tuning;
 mod weak;
 
 pub use config::{Channels, Config, ConfigError};
-pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample};
+pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Snapshot};
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, Term};
 pub use model::{MAX_SOLUTIONS, Model, Solution};
 pub use real::Real;

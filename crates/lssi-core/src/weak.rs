@@ -25,6 +25,7 @@
 use crate::real::Real;
 
 /// Overlapping test-function sums.
+#[derive(Clone)]
 pub(crate) struct TestRows<T, const P: usize> {
     /// Rows per test function, L (0: off).
     width: u32,

@@ -40,6 +40,8 @@ use crate::smoothing::KnnSmoother;
 use crate::weak::TestRows;
 use heapless::HistoryBuf;
 
+pub use snapshot::Snapshot;
+
 /// The ring buffer of v, when v is measured (x's is ring 0, u's the next one).
 const V_RING: usize = 1;
 
@@ -77,6 +79,7 @@ fn golden_steps<T: Real>() -> usize {
 /// The two halves A and B of the data, or, until the column scales are known, the warm-up
 /// rows. The halves are empty while rows wait in the warm-up buffer, so the two share their
 /// memory (the buffer's 1.5 KB of RAM on the M4F with P = 16).
+#[derive(Clone)]
 enum Store<T, const P: usize> {
     Warmup(heapless::Vec<Row<T>, WARMUP_ROWS>),
     Halves(Factor<T, P>, Factor<T, P>),
@@ -192,6 +195,7 @@ const TEST_BLOCK: u64 = 8;
 
 /// What gathers the rows before they reach A or B. The two never coexist, so the sums take
 /// no memory beyond the block factor's.
+#[derive(Clone)]
 enum Collector<T, const P: usize> {
     /// Rows as they are, gathered in a block factor that is merged into A or B when full.
     Block(Factor<T, P>),
@@ -431,6 +435,25 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// [`Identifier::model`]), `Ok(false)` otherwise, and `Err` (counted) for a sample that
     /// was not fed in.
     pub fn push(&mut self, sample: Sample<T>) -> Result<bool, Rejection> {
+        self.push_with(sample, Self::select)
+    }
+
+    /// Feeds one sample like [`Identifier::push`], but at a scheduled screening hands the
+    /// identifier to `screening` instead of screening in place, and returns what it returns.
+    ///
+    /// `push` passes [`Identifier::select`]. A device that must not stall passes a closure
+    /// that copies the state into a [`Snapshot`] ([`Identifier::snapshot_into`]) and returns
+    /// `false`; the snapshot's `select` then runs at a lower priority while samples go on
+    /// and gives, bit for bit, the model `push` would have made here: the rows never read
+    /// the model, and the only state a screening changes besides it, the smoothing's K
+    /// (re-chosen after every scheduled screening), is re-chosen here, after `screening`
+    /// returns, in both cases. `screening` is called only when a screening can run (enough
+    /// rows in both halves), with the screening already counted.
+    pub fn push_with(
+        &mut self,
+        sample: Sample<T>,
+        screening: impl FnOnce(&mut Self) -> bool,
+    ) -> Result<bool, Rejection> {
         if let Err(r) = self.check(&sample) {
             match r {
                 Rejection::NonFinite => self.counters.non_finite += 1,
@@ -466,13 +489,14 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         self.since_screen += 1;
         if self.since_screen >= self.config.screening_period {
             self.since_screen = 0;
-            let before = self.counters.screenings;
-            let screened = self.screen();
+            if !self.can_screen() {
+                return Ok(false);
+            }
+            self.counters.screenings += 1;
+            let screened = screening(self);
             // The periodic screening also re-chooses K from ε(K) (the paper's Fig. 4); a
             // screening on request does not, so asking for a model changes nothing after it.
-            if self.counters.screenings != before {
-                self.adapt_smoothing();
-            }
+            self.adapt_smoothing();
             return Ok(screened);
         }
         Ok(false)
@@ -567,5 +591,6 @@ mod origin;
 mod plan;
 mod rows;
 mod screening;
+mod snapshot;
 #[cfg(test)]
 mod tests;

@@ -98,13 +98,31 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// new): the rows that follow are processed exactly as without it. The periodic one
     /// also re-chooses the smoothing's K.
     pub fn screen(&mut self) -> bool {
-        let n = self.library.len();
-        let enough = T::from_usize(2 * n);
-        let (wa, wb) = self.half_weights();
-        if wa < enough || wb < enough {
+        if !self.can_screen() {
             return false;
         }
         self.counters.screenings += 1;
+        self.select()
+    }
+
+    /// Whether a screening can run: enough rows (twice the terms) in both halves.
+    pub(super) fn can_screen(&self) -> bool {
+        let enough = T::from_usize(2 * self.library.len());
+        let (wa, wb) = self.half_weights();
+        wa >= enough && wb >= enough
+    }
+
+    /// The screening proper, on the state as it is: sensor offsets, the threshold sweep at
+    /// each candidate origin and MES; the model selected becomes [`Identifier::model`].
+    /// Returns whether one came out. Changes nothing but the model.
+    ///
+    /// [`Identifier::screen`] runs it after its checks; on a [`Snapshot`] it is the whole
+    /// screening of the state the snapshot was taken from (see [`Identifier::push_with`]).
+    pub fn select(&mut self) -> bool {
+        if !self.can_screen() {
+            return false;
+        }
+        let n = self.library.len();
         let parsimony = T::from_f64(self.config.parsimony);
         let grid = usize::from(self.config.thresholds);
         let (x_closed, v_closed) = self.library.shift_closed();

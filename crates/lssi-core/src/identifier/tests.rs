@@ -255,3 +255,65 @@ fn two_rings_give_the_models_of_three_bit_for_bit() {
     let x = Channels::default();
     assert_eq!(models::<1>(x, 12_000), models::<3>(x, 12_000));
 }
+
+/// Every model of the recording with each screening run on a snapshot (taken at the
+/// scheduled point, screened at once here; on a device later, elsewhere).
+fn deferred_models(config: Config, channels: Channels, n: usize) -> Vec<Vec<u64>> {
+    let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(config) else {
+        panic!("valid");
+    };
+    let mut snapshot: Box<Snapshot<f32, 16>> = Box::new(Snapshot::empty());
+    let mut out = Vec::new();
+    for (t, x, v, u) in duffing(n) {
+        let sample = Sample {
+            t,
+            x: x as f32,
+            v: channels.velocity.then_some(v as f32),
+            u: channels.input.then_some(u as f32),
+        };
+        let mut taken = false;
+        let pushed = id.push_with(sample, |id| {
+            id.snapshot_into(&mut snapshot);
+            taken = true;
+            false
+        });
+        assert_eq!(
+            pushed,
+            Ok(false),
+            "a deferred screening makes no model in place"
+        );
+        if taken && snapshot.select() {
+            out.push(bits(snapshot.model().expect("a screening made it")));
+        }
+    }
+    assert!(id.model().is_none());
+    // The screening on request at the end, on a snapshot too.
+    id.snapshot_into(&mut snapshot);
+    assert!(snapshot.select());
+    out.push(bits(snapshot.model().expect("a model")));
+    out
+}
+
+/// A screening on a snapshot gives the model of the screening in place, bit for bit, at
+/// every scheduled point and at the end: rows as they are (x and v, where the smoothing's
+/// K is re-chosen after each screening) and test-function sums (x and u).
+#[test]
+fn snapshot_screenings_give_the_models_of_screenings_in_place() {
+    assert_eq!(
+        deferred_models(config(XV), XV, 24_000),
+        models::<3>(XV, 24_000)
+    );
+    let sums = Config {
+        window: 9,
+        derivative_degree: 5,
+        row_stride: 1,
+        test_rows: 140,
+        ..config(XU)
+    };
+    let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(sums) else {
+        panic!("valid");
+    };
+    let inline = models_of(&mut id, XU, 12_000);
+    assert!(inline.len() >= 3, "{} models", inline.len());
+    assert_eq!(deferred_models(sums, XU, 12_000), inline);
+}
