@@ -67,6 +67,11 @@ fn health(samples: u64) -> DeviceMsg {
         screenings: 1,
         duplicates: 1,
         decode_errors: 0,
+        overruns: 0,
+        queue_high_water: 0,
+        latency_max_ns: 0,
+        screenings_skipped: 0,
+        sample_rate_hz: 0.0,
     }
 }
 

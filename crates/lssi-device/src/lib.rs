@@ -444,6 +444,12 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             screenings: u32::try_from(screenings).unwrap_or(u32::MAX),
             duplicates: s.duplicates,
             decode_errors: s.decode_errors,
+            // A host sends the samples: nothing is sampled here.
+            overruns: 0,
+            queue_high_water: 0,
+            latency_max_ns: 0,
+            screenings_skipped: 0,
+            sample_rate_hz: 0.0,
         }
     }
 

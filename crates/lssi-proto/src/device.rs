@@ -81,6 +81,19 @@ pub enum DeviceMsg {
         duplicates: u32,
         /// Frames that passed the CRC but did not decode (e.g. another protocol version).
         decode_errors: u32,
+        /// Standalone device: samples the timer took that found the sample queue full (lost,
+        /// counted). 0 when the host sends the samples.
+        overruns: u32,
+        /// Standalone device: the most samples the queue has held at once.
+        queue_high_water: u16,
+        /// Standalone device: the longest time from a sample's timer interrupt to its row
+        /// done, in nanoseconds (saturating).
+        latency_max_ns: u32,
+        /// Standalone device: scheduled screenings left out because the previous one was
+        /// still running on the snapshot (the model then skips one update).
+        screenings_skipped: u32,
+        /// Standalone device: the sampling rate in Hz (0 when the host sends the samples).
+        sample_rate_hz: f32,
     },
     /// Raw defmt frames, decoded on the host with the firmware's ELF.
     Log {
@@ -100,7 +113,10 @@ impl MaxSize for DeviceMsg {
             + u16::POSTCARD_MAX_SIZE
             + 2 * u32::POSTCARD_MAX_SIZE
             + CostUnit::POSTCARD_MAX_SIZE
-            + 8 * u32::POSTCARD_MAX_SIZE,
+            + 8 * u32::POSTCARD_MAX_SIZE
+            + 3 * u32::POSTCARD_MAX_SIZE
+            + u16::POSTCARD_MAX_SIZE
+            + f32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
     ]);
 }
@@ -228,6 +244,9 @@ pub enum SnapshotCause {
     Scheduled,
     /// The answer to a [`HostMsg::Query`](crate::HostMsg::Query).
     Query,
+    /// A standalone device's last model: its sensor's recording ended (the QEMU stand-in)
+    /// and every sample was screened, as `lssi identify` screens at the end of a file.
+    Final,
 }
 
 impl MaxSize for ModelSnapshot {

@@ -19,12 +19,12 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 3, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 4, "update the README's worked examples");
     assert_eq!(
         frame(&HostMsg::Hello {
-            protocol_version: 3
+            protocol_version: 4
         }),
-        [0x01, 0x06, 0x03, 0x26, 0x84, 0x31, 0xE2, 0x00]
+        [0x01, 0x06, 0x04, 0xCD, 0xE0, 0xFB, 0x36, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),

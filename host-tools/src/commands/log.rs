@@ -171,6 +171,7 @@ fn cause(snapshot: &ModelSnapshot) -> &'static str {
     match snapshot.cause {
         SnapshotCause::Scheduled => "scheduled",
         SnapshotCause::Query => "query",
+        SnapshotCause::Final => "final",
     }
 }
 
@@ -232,6 +233,11 @@ fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             screenings,
             duplicates,
             decode_errors,
+            overruns,
+            queue_high_water,
+            latency_max_ns,
+            screenings_skipped,
+            sample_rate_hz,
         } => json!({
             "kind": "health",
             "samples": samples,
@@ -248,6 +254,11 @@ fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             "screenings": screenings,
             "duplicates": duplicates,
             "decode_errors": decode_errors,
+            "overruns": overruns,
+            "queue_high_water": queue_high_water,
+            "latency_max_ns": latency_max_ns,
+            "screenings_skipped": screenings_skipped,
+            "sample_rate_hz": sample_rate_hz,
         }),
         DeviceMsg::Log { bytes } => json!({ "kind": "log", "bytes": hex(bytes) }),
     }

@@ -228,7 +228,11 @@ pub fn snapshot() -> impl Strategy<Value = ModelSnapshot> {
 }
 
 pub fn snapshot_cause() -> impl Strategy<Value = SnapshotCause> {
-    prop_oneof![Just(SnapshotCause::Scheduled), Just(SnapshotCause::Query)]
+    prop_oneof![
+        Just(SnapshotCause::Scheduled),
+        Just(SnapshotCause::Query),
+        Just(SnapshotCause::Final)
+    ]
 }
 
 pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
@@ -262,12 +266,26 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                 any::<u32>(),
                 any::<u32>()
             ),
+            (
+                any::<u32>(),
+                any::<u16>(),
+                any::<u32>(),
+                any::<u32>(),
+                0.0f32..1.0e6
+            ),
         )
             .prop_map(
                 |(
                     (samples, rejected, buffer_fill, cost_mean, cost_max),
                     (cost_unit, watchdog, crc_errors, frames_ok),
                     (screen_cost, screen_cost_max, screenings, duplicates, decode_errors),
+                    (
+                        overruns,
+                        queue_high_water,
+                        latency_max_ns,
+                        screenings_skipped,
+                        sample_rate_hz,
+                    ),
                 )| DeviceMsg::Health {
                     samples,
                     rejected,
@@ -283,6 +301,11 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                     screenings,
                     duplicates,
                     decode_errors,
+                    overruns,
+                    queue_high_water,
+                    latency_max_ns,
+                    screenings_skipped,
+                    sample_rate_hz,
                 },
             ),
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
@@ -404,6 +427,11 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
             screenings: u32::MAX,
             duplicates: u32::MAX,
             decode_errors: u32::MAX,
+            overruns: u32::MAX,
+            queue_high_water: u16::MAX,
+            latency_max_ns: u32::MAX,
+            screenings_skipped: u32::MAX,
+            sample_rate_hz: f32::MAX,
         },
         DeviceMsg::Log {
             bytes: core::iter::repeat_n(0xA5, MAX_LOG).collect(),
