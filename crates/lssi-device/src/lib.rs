@@ -102,6 +102,7 @@
     )
 )]
 
+pub mod standalone;
 pub mod wire;
 
 use core::cmp::Ordering;

@@ -1,0 +1,248 @@
+//! The standalone instrument's parts on the host: a timer that queues readings, the
+//! identify task, thread mode's screening on the snapshot, frames out and commands in.
+
+use lssi_core::{Config, Identifier, Sample, Snapshot};
+use lssi_device::Transport;
+use lssi_device::standalone::{Clock, Engine, EventQueue, Reading, Reporter, Sampler, Shared};
+use lssi_proto::{DeviceFrameDecoder, DeviceMsg, HostMsg, SnapshotCause, encode};
+use std::cell::Cell;
+
+const W: usize = 64;
+const P: usize = 16;
+const C: usize = 1;
+
+struct FakeClock(Cell<u32>);
+
+impl Clock for FakeClock {
+    const HZ: u32 = 1_000_000;
+    fn now(&self) -> u32 {
+        self.0.get()
+    }
+}
+
+#[derive(Default)]
+struct Wire(Vec<u8>);
+
+impl Transport for Wire {
+    type Error = std::convert::Infallible;
+    fn read(&mut self, _: &mut [u8]) -> Result<usize, Self::Error> {
+        Ok(0)
+    }
+    fn write(&mut self, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.0.extend_from_slice(bytes);
+        Ok(())
+    }
+}
+
+fn config() -> Config {
+    Config {
+        sample_period: 0.01,
+        window: 31,
+        omega: 1.0,
+        screening_period: 1500,
+        ..Config::default()
+    }
+}
+
+fn signal(i: u32) -> f32 {
+    let t = f64::from(i) * 0.01;
+    ((1.3 * t).sin() + 0.2 * (0.7 * t).cos()) as f32
+}
+
+fn decode(bytes: &[u8]) -> Vec<DeviceMsg> {
+    let mut decoder = DeviceFrameDecoder::new();
+    decoder
+        .feed::<DeviceMsg>(bytes)
+        .map(|m| m.expect("a valid frame"))
+        .collect()
+}
+
+/// Runs `n` samples through the three parts, the identify task every `burst` ticks and
+/// thread mode every `screen_every` ticks (a screening that lags the rows); returns the
+/// frames sent and the shared state.
+fn run(
+    n: u32,
+    burst: u32,
+    screen_every: u32,
+    reading: impl Fn(u32) -> f32,
+) -> (Vec<DeviceMsg>, &'static Shared<P>) {
+    let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
+    shared.give_snapshot(Box::leak(Box::new(Snapshot::empty())));
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, mut consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let mut engine: Box<Engine<W, P, C>> = Box::new(Engine::new());
+    engine.configure(config()).expect("valid");
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config(), 100.0, 100_000_000);
+    let clock = FakeClock(Cell::new(0));
+    let mut wire = Wire::default();
+    for i in 0..n {
+        clock.0.set(clock.0.get() + 10_000);
+        sampler.tick(
+            clock.now(),
+            Reading {
+                x: reading(i),
+                v: None,
+                u: None,
+            },
+            &shared.counters,
+        );
+        if i % burst == burst - 1 {
+            engine.run(&mut consumer, shared, &clock);
+        }
+        if i % screen_every == screen_every - 1 {
+            let Ok(()) = reporter.poll(
+                shared,
+                &mut wire,
+                &clock,
+                |f| {
+                    f();
+                    0
+                },
+                || {},
+            );
+        }
+    }
+    assert!(sampler.end());
+    for _ in 0..4 {
+        engine.run(&mut consumer, shared, &clock);
+        let Ok(()) = reporter.poll(
+            shared,
+            &mut wire,
+            &clock,
+            |f| {
+                f();
+                0
+            },
+            || {},
+        );
+    }
+    assert!(reporter.finished());
+    (decode(&wire.0), shared)
+}
+
+/// The final model equals the identifier's own (every sample pushed, then a screening),
+/// bit for bit, with screenings that lag the rows by up to 700 samples; no overruns with
+/// the queue drained every 32 ticks; the final Health says so.
+#[test]
+fn the_final_model_is_the_identifiers_own() {
+    let n = 5000;
+    let (frames, shared) = run(n, 32, 700, signal);
+    let mut id: Box<Identifier<f32, W, P, C>> = Box::new(Identifier::new(config()).expect("valid"));
+    for i in 0..n {
+        id.push(Sample {
+            t: f64::from(i) * 0.01,
+            x: signal(i),
+            v: None,
+            u: None,
+        })
+        .expect("finite");
+    }
+    assert!(id.screen());
+    let model = id.model().expect("a model");
+    let last_model = frames
+        .iter()
+        .rev()
+        .find_map(|m| match m {
+            DeviceMsg::Model(s) => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a model frame");
+    assert_eq!(last_model.cause, SnapshotCause::Final);
+    let expected: Vec<f32> = model.coefficients[..model.terms.len()].to_vec();
+    assert_eq!(last_model.coefficients.to_vec(), expected);
+    assert_eq!(last_model.samples, u64::from(n));
+    match frames.last() {
+        Some(DeviceMsg::Health {
+            overruns,
+            queue_high_water,
+            samples,
+            screenings_skipped,
+            ..
+        }) => {
+            assert_eq!(*overruns, 0);
+            assert_eq!(*queue_high_water, 32);
+            assert_eq!(*samples, u64::from(n));
+            assert_eq!(*screenings_skipped, 0);
+        }
+        other => panic!("the last frame is {other:?}"),
+    }
+    assert_eq!(shared.status().samples, u64::from(n));
+}
+
+/// A queue drained too late overruns: the lost samples are counted, never silent, and
+/// the samples that follow keep the timer's time.
+#[test]
+fn a_full_queue_counts_overruns() {
+    let (frames, shared) = run(2000, 100, 100, signal);
+    let overruns = shared
+        .counters
+        .overruns
+        .load(std::sync::atomic::Ordering::Relaxed);
+    // 100 ticks a drain, 64 places: 36 lost a drain.
+    assert_eq!(overruns, 20 * 36);
+    assert_eq!(shared.status().samples, 2000 - u64::from(overruns));
+    assert!(
+        frames
+            .iter()
+            .any(|m| matches!(m, DeviceMsg::Health { overruns: o, .. } if *o == overruns))
+    );
+}
+
+/// NaN and saturated readings are counted and skipped; sampling goes on.
+#[test]
+fn bad_readings_are_counted_and_skipped() {
+    let (_, shared) = run(3000, 16, 16, |i| match i % 500 {
+        7 => f32::NAN,
+        9 => 1.0e30,
+        _ => signal(i),
+    });
+    let status = shared.status();
+    assert_eq!(status.rejected, 12);
+    assert_eq!(status.samples, 3000 - 12);
+}
+
+/// Commands from a host mid-run: Hello, Query (model + health), a refused Configure, and
+/// a host's sample batch (Busy: this device samples itself); garbage is counted.
+#[test]
+fn a_host_can_connect_mid_run() {
+    let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config(), 100.0, 0);
+    let mut wire = Wire::default();
+    let mut bytes = vec![0x13, 0x37, 0x00];
+    let mut frame = [0u8; 512];
+    for message in [
+        HostMsg::Hello {
+            protocol_version: lssi_proto::PROTOCOL_VERSION,
+        },
+        HostMsg::Query,
+        HostMsg::Configure(
+            lssi_device::wire::config_to_wire(&Config {
+                window: 500,
+                ..config()
+            })
+            .expect("encodable"),
+        ),
+    ] {
+        let len = encode(&message, &mut frame).expect("fits");
+        bytes.extend_from_slice(&frame[..len]);
+    }
+    let Ok(()) = reporter.receive::<_, FakeClock>(&bytes, shared, &mut wire);
+    let frames = decode(&wire.0);
+    assert!(matches!(
+        frames[0],
+        DeviceMsg::HelloReply {
+            window_capacity: 64,
+            ..
+        }
+    ));
+    assert!(matches!(frames[1], DeviceMsg::Health { .. }));
+    assert!(matches!(
+        frames[2],
+        DeviceMsg::Nak {
+            reason: lssi_proto::NakReason::BadConfig,
+            ..
+        }
+    ));
+    assert_eq!(frames.len(), 3);
+}
