@@ -97,12 +97,15 @@ pub struct Shared<const P: usize> {
     /// The snapshot while nobody screens it (the identify task fills it from here).
     free: Mutex<Cell<Option<&'static mut Snapshot<f32, P>>>>,
     /// The snapshot waiting for (or under) its screening, with why it was taken.
-    full: Mutex<Cell<Option<(&'static mut Snapshot<f32, P>, SnapshotCause)>>>,
+    full: Mutex<Cell<Option<Taken<P>>>>,
     /// A configuration for the identify task to apply before its next sample.
     pending: Mutex<Cell<Option<Config>>>,
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     status: Mutex<Cell<Status>>,
 }
+
+/// A snapshot taken for a screening, with why it was taken.
+type Taken<const P: usize> = (&'static mut Snapshot<f32, P>, SnapshotCause);
 
 /// The identifier's figures as the identify task last published them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -156,6 +159,17 @@ impl<const P: usize> Shared<P> {
         critical_section::with(|cs| self.pending.borrow(cs).set(Some(config)));
     }
 
+    /// Whether a snapshot waits for its screening (thread mode has work: do not sleep).
+    pub fn screening_waiting(&self) -> bool {
+        critical_section::with(|cs| {
+            let full = self.full.borrow(cs);
+            let taken = full.take();
+            let waiting = taken.is_some();
+            full.set(taken);
+            waiting
+        })
+    }
+
     /// The identify task's figures.
     pub fn status(&self) -> Status {
         critical_section::with(|cs| self.status.borrow(cs).get())
@@ -165,7 +179,7 @@ impl<const P: usize> Shared<P> {
         critical_section::with(|cs| self.free.borrow(cs).take())
     }
 
-    fn take_full(&self) -> Option<(&'static mut Snapshot<f32, P>, SnapshotCause)> {
+    fn take_full(&self) -> Option<Taken<P>> {
         critical_section::with(|cs| self.full.borrow(cs).take())
     }
 }

@@ -20,6 +20,7 @@ pub const CHANNELS: usize = if cfg!(feature = "three-channels") {
 
 pub mod cost;
 pub mod logger;
+pub mod mps2;
 pub mod once;
 pub mod platform;
 pub mod stack;

@@ -1,0 +1,349 @@
+//! The standalone instrument on QEMU's `mps2-an386`: samples its "sensor" (a recording in
+//! PSRAM, see `lssi_firmware::mps2`) by TIMER0, identifies, and reports Model and Health
+//! frames on UART0 every second by itself; a host may connect at any time and query or
+//! reconfigure (`lssi monitor`). The application logic is lssi-device's `standalone`
+//! module, shared with the STM32F411 board (crates/lssi-board-f411).
+//!
+//! | context | priority | does |
+//! |---|---|---|
+//! | TIMER0 | 0x00 | one reading → the 64-place queue (overruns counted); pends identify |
+//! | UART0 RX/TX | 0x40 | bytes ↔ bounded rings |
+//! | identify (IRQ 10, pended) | 0x80 | queue → identifier rows; a screening's snapshot to thread mode |
+//! | thread mode | lowest | the screening on the snapshot; frames; host commands; `wfi` |
+//!
+//! When the recording ends, the last model (a screening of every sample, as `lssi identify`
+//! makes) and a Health frame go out, the UART drains and QEMU exits with status 0.
+
+#![no_std]
+#![no_main]
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use cortex_m::peripheral::NVIC;
+use cortex_m_rt::{entry, exception};
+use critical_section::Mutex;
+use heapless::spsc::{Consumer, Producer, Queue};
+use lssi_core::{Config, Snapshot};
+use lssi_device::standalone::{Clock, Engine, Event, EventQueue, Reporter, Sampler, Shared};
+use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Transport, wire};
+use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
+use lssi_firmware::once::TakeOnce;
+use lssi_firmware::{CHANNELS, platform, uart};
+use lssi_proto::{HostMsg, decode_frame};
+
+type Id = Engine<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>;
+
+/// Bytes the receive ring holds (one more slot than that).
+const RX_SLOTS: usize = 257;
+/// Bytes the transmit ring holds (one more slot than that): two Model frames.
+const TX_SLOTS: usize = 1537;
+
+static SHARED: Shared<DEFAULT_TERMS> = Shared::new();
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.ENGINE")]
+static ENGINE: TakeOnce<Id> = TakeOnce::new(Engine::new());
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.SNAPSHOT")]
+static SNAPSHOT: TakeOnce<Snapshot<f32, DEFAULT_TERMS>> = TakeOnce::new(Snapshot::empty());
+static QUEUE: TakeOnce<EventQueue> = TakeOnce::new(Queue::new());
+static RX: TakeOnce<Queue<u8, RX_SLOTS>> = TakeOnce::new(Queue::new());
+static TX: TakeOnce<Queue<u8, TX_SLOTS>> = TakeOnce::new(Queue::new());
+
+/// What the timer interrupt owns.
+struct Sensor {
+    sampler: Sampler<'static>,
+    recording: Recording,
+    next: u32,
+}
+
+static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
+static IDENTIFY: Mutex<Cell<Option<&'static mut Id>>> = Mutex::new(Cell::new(None));
+static EVENTS: Mutex<RefCell<Option<Consumer<'static, Event>>>> = Mutex::new(RefCell::new(None));
+static RX_IN: Mutex<RefCell<Option<Producer<'static, u8>>>> = Mutex::new(RefCell::new(None));
+static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCell::new(None));
+/// The TX interrupt found the ring empty: the next write must start it again.
+static TX_IDLE: AtomicBool = AtomicBool::new(true);
+/// Received bytes lost (ring full or UART overrun).
+static RX_LOST: AtomicU32 = AtomicU32::new(0);
+
+/// The image's own configuration, used when no configuration is stored: lssi-core's
+/// defaults at the sensor's rate, a screening a second.
+fn default_config(rate_hz: f64) -> Config {
+    Config {
+        sample_period: 1.0 / rate_hz,
+        screening_period: (rate_hz as u32).max(1000),
+        ..Config::default()
+    }
+}
+
+/// The stored configuration (a host's `Configure` frame), if there is a valid one.
+fn stored_config(recording: &Recording) -> Option<Config> {
+    let mut buffer = [0u8; mps2::MAX_CONFIG];
+    let frame = recording.config_frame(&mut buffer);
+    if frame.is_empty() {
+        return None;
+    }
+    match decode_frame::<HostMsg>(frame) {
+        Ok(HostMsg::Configure(c)) => Some(wire::config_from_wire(&c)),
+        _ => {
+            defmt::warn!("the stored configuration does not decode: using the image's");
+            None
+        }
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let Some(mut core) = cortex_m::Peripherals::take() else {
+        platform::exit(platform::EXIT_PANIC)
+    };
+    if let Err(e) = uart::Uart0::take(mps2::SYSCLK_HZ, 115_200) {
+        defmt::error!("UART0: {}", e);
+        platform::exit(platform::EXIT_PANIC)
+    }
+    mps2::start_clock();
+    let Some(recording) = Recording::find() else {
+        defmt::error!(
+            "no recording at PSRAM 0x21000000: load one with -device loader (lssi monitor --qemu does)"
+        );
+        platform::exit(platform::EXIT_PANIC)
+    };
+    let (Some(engine), Some(snapshot), Some(queue), Some(rx), Some(tx)) = (
+        ENGINE.take(),
+        SNAPSHOT.take(),
+        QUEUE.take(),
+        RX.take(),
+        TX.take(),
+    ) else {
+        platform::exit(platform::EXIT_PANIC)
+    };
+    let mut config = stored_config(&recording).unwrap_or_else(|| default_config(recording.rate_hz));
+    config.channels.velocity = recording.velocity;
+    config.channels.input = recording.input;
+    if let Err(e) = engine.configure(config) {
+        defmt::warn!(
+            "configuration refused ({}): using the image's",
+            defmt::Display2Format(&e)
+        );
+        config = default_config(recording.rate_hz);
+        config.channels.velocity = recording.velocity;
+        config.channels.input = recording.input;
+        if engine.configure(config).is_err() {
+            platform::exit(platform::EXIT_PANIC)
+        }
+    }
+    SHARED.give_snapshot(snapshot);
+    let (producer, consumer) = queue.split();
+    let (rx_in, mut rx_out) = rx.split();
+    let (tx_in, tx_out) = tx.split();
+    critical_section::with(|cs| {
+        SENSOR.borrow_ref_mut(cs).replace(Sensor {
+            sampler: Sampler::new(producer),
+            recording,
+            next: 0,
+        });
+        IDENTIFY.borrow(cs).set(Some(engine));
+        EVENTS.borrow_ref_mut(cs).replace(consumer);
+        RX_IN.borrow_ref_mut(cs).replace(rx_in);
+        TX_OUT.borrow_ref_mut(cs).replace(tx_out);
+    });
+    let rate = recording.rate_hz;
+    defmt::info!(
+        "lssi standalone: {=u32} samples at {=f64} Hz, window {=usize}, screening every {=u32}",
+        recording.len,
+        rate,
+        config.window,
+        config.screening_period
+    );
+    let mut reporter: Reporter<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS> =
+        Reporter::new(config, rate as f32, BoardClock::HZ);
+    let mut link = Link { tx: tx_in };
+
+    #[allow(unsafe_code)]
+    // SAFETY: priorities are set before the interrupts are unmasked; no critical section
+    // based on priority masking exists here (critical sections disable interrupts).
+    unsafe {
+        core.NVIC.set_priority(Irq::Timer0, 0x00);
+        core.NVIC.set_priority(Irq::Uart0Rx, 0x40);
+        core.NVIC.set_priority(Irq::Uart0Tx, 0x40);
+        core.NVIC.set_priority(Irq::Identify, 0x80);
+        NVIC::unmask(Irq::Timer0);
+        NVIC::unmask(Irq::Uart0Rx);
+        NVIC::unmask(Irq::Uart0Tx);
+        NVIC::unmask(Irq::Identify);
+    }
+    mps2::uart_interrupts_on();
+    mps2::start_sampling(mps2::sampling_reload(rate));
+
+    let mut chunk = [0u8; 64];
+    loop {
+        let mut n = 0;
+        while n < chunk.len() {
+            match rx_out.dequeue() {
+                Some(b) => {
+                    chunk[n] = b;
+                    n += 1;
+                }
+                None => break,
+            }
+        }
+        let Ok(()) = reporter.receive::<_, BoardClock>(&chunk[..n], &SHARED, &mut link);
+        let Ok(()) = reporter.poll(
+            &SHARED,
+            &mut link,
+            &BoardClock,
+            |f| {
+                let t0 = BoardClock.now();
+                f();
+                BoardClock.now().wrapping_sub(t0)
+            },
+            || NVIC::pend(Irq::Identify),
+        );
+        if reporter.finished() {
+            finish(&reporter)
+        }
+        if n == 0 {
+            // Sleeps only if nothing waits; checked with interrupts off so that an
+            // interrupt in between still wakes the `wfi` (it is taken right after).
+            cortex_m::interrupt::free(|_| {
+                if !SHARED.screening_waiting() && !rx_out.ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+/// The recording is done: waits for the UART to send everything, logs the figures, exits.
+fn finish(reporter: &Reporter<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
+    while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
+        cortex_m::asm::wfi();
+    }
+    let c = &SHARED.counters;
+    let status = SHARED.status();
+    defmt::info!(
+        "recording done: {=u64} samples, {=u32} overruns, queue high-water {=u32}, worst latency {=u32} ticks, {=u32} screenings skipped, {=u32} frames, {=u32} RX bytes lost",
+        status.samples,
+        c.overruns.load(Ordering::Relaxed),
+        c.queue_high_water.load(Ordering::Relaxed),
+        c.latency_max.load(Ordering::Relaxed),
+        c.screenings_skipped.load(Ordering::Relaxed),
+        reporter.frames_sent,
+        RX_LOST.load(Ordering::Relaxed)
+    );
+    platform::exit(platform::EXIT_SUCCESS)
+}
+
+/// Thread mode's end of the UART: frames into the TX ring (the TX interrupt sends them).
+struct Link {
+    tx: Producer<'static, u8>,
+}
+
+impl Transport for Link {
+    type Error = core::convert::Infallible;
+
+    fn read(&mut self, _: &mut [u8]) -> Result<usize, Self::Error> {
+        Ok(0)
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> Result<(), Self::Error> {
+        for &b in bytes {
+            while self.tx.enqueue(b).is_err() {
+                kick_tx();
+                cortex_m::asm::wfi();
+            }
+        }
+        kick_tx();
+        Ok(())
+    }
+}
+
+/// Starts the TX interrupt if it went idle.
+fn kick_tx() {
+    if TX_IDLE.swap(false, Ordering::AcqRel) {
+        NVIC::pend(Irq::Uart0Tx);
+    }
+}
+
+fn on_timer() {
+    mps2::clear_sampling_irq();
+    let stamp = BoardClock.now();
+    critical_section::with(|cs| {
+        if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
+            if sensor.next < sensor.recording.len {
+                let reading = sensor.recording.reading(sensor.next);
+                sensor.next += 1;
+                sensor.sampler.tick(stamp, reading, &SHARED.counters);
+            } else if sensor.sampler.end() {
+                mps2::stop_sampling();
+            }
+        }
+    });
+    NVIC::pend(Irq::Identify);
+}
+
+fn on_identify() {
+    let engine = critical_section::with(|cs| IDENTIFY.borrow(cs).take());
+    let events = critical_section::with(|cs| EVENTS.borrow_ref_mut(cs).take());
+    if let (Some(engine), Some(mut events)) = (engine, events) {
+        engine.run(&mut events, &SHARED, &BoardClock);
+        critical_section::with(|cs| {
+            IDENTIFY.borrow(cs).set(Some(engine));
+            EVENTS.borrow_ref_mut(cs).replace(events);
+        });
+    }
+}
+
+fn on_uart_rx() {
+    let (byte, overrun) = mps2::uart_rx();
+    if overrun {
+        RX_LOST.fetch_add(1, Ordering::Relaxed);
+    }
+    if let Some(b) = byte {
+        critical_section::with(|cs| {
+            if let Some(rx) = RX_IN.borrow_ref_mut(cs).as_mut()
+                && rx.enqueue(b).is_err()
+            {
+                RX_LOST.fetch_add(1, Ordering::Relaxed);
+            }
+        });
+    }
+}
+
+fn on_uart_tx() {
+    mps2::uart_tx_ack();
+    critical_section::with(|cs| {
+        let mut out = TX_OUT.borrow_ref_mut(cs);
+        let Some(out) = out.as_mut() else {
+            return;
+        };
+        while mps2::uart_tx_ready() {
+            match out.dequeue() {
+                Some(b) => mps2::uart_tx(b),
+                None => {
+                    TX_IDLE.store(true, Ordering::Release);
+                    return;
+                }
+            }
+        }
+    });
+}
+
+/// Every device interrupt comes here (no peripheral crate for this board): dispatched by
+/// its number.
+#[allow(unsafe_code)]
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    match irqn {
+        8 => on_timer(),
+        10 => on_identify(),
+        0 => on_uart_rx(),
+        1 => on_uart_tx(),
+        _ => {
+            defmt::error!("unexpected interrupt {=i16}", irqn);
+            platform::exit(platform::EXIT_HARD_FAULT)
+        }
+    }
+}
