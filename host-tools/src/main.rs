@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lssi_host::commands::{bench, generate, identify, info, log, plot, replay};
+use lssi_host::commands::{bench, generate, identify, info, log, monitor, plot, replay};
 use lssi_host::error::CliError;
 
 /// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
@@ -28,8 +28,11 @@ enum Command {
     Info(info::InfoArgs),
     /// Replay a recording through the device code over a serial link (simulated, QEMU or real).
     Replay(replay::ReplayArgs),
-    /// Print a telemetry log written by `lssi replay` (text, JSON or CSV).
+    /// Print a telemetry log written by `lssi replay` or `lssi monitor` (text, JSON or CSV).
     Log(log::LogArgs),
+    /// Listen to a standalone device (a serial port, or the firmware under QEMU sampling a
+    /// recording): live model and health, telemetry log, JSON lines.
+    Monitor(monitor::MonitorArgs),
     /// Draw a recording and its identified model (PNG and SVG).
     Plot(plot::PlotArgs),
 }
@@ -42,6 +45,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Bench(args) => bench::run(args),
         Command::Replay(args) => replay::run(args),
         Command::Log(args) => log::run(args),
+        Command::Monitor(args) => monitor::run(args),
         Command::Plot(args) => plot::run(args),
     }
 }

@@ -195,7 +195,8 @@ pub fn entry_json(entry: &Entry, session: &(Config, bool)) -> Value {
     object
 }
 
-fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
+/// The JSON object of one device message (as `lssi log --json` and `lssi monitor --json` print it).
+pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
     match message {
         DeviceMsg::HelloReply {
             protocol_version,

@@ -7,5 +7,6 @@ pub mod generate;
 pub mod identify;
 pub mod info;
 pub mod log;
+pub mod monitor;
 pub mod plot;
 pub mod replay;
