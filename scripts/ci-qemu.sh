@@ -3,9 +3,11 @@
 #   1. qemu-system-arm (apt) and defmt-print (cargo install) when missing;
 #   2. the firmware's release ELF (crates/lssi-firmware, thumbv7em-none-eabihf);
 #   3. its smoke test under QEMU (crates/lssi-firmware/scripts/qemu-check.sh);
-#   4. the end-to-end test: the bundled recording replayed through the firmware under QEMU
-#      must give the model of `lssi identify --f32` (tests/tests/qemu.rs: ignored by a plain
-#      `cargo test`, run here with --include-ignored; a missing QEMU or ELF fails them);
+#   4. the end-to-end tests: the bundled recording replayed through the firmware under QEMU
+#      must give the model of `lssi identify --f32` (tests/tests/qemu.rs), and the standalone
+#      image sampling a 10 kHz recording by its timer must lose no sample and end with that
+#      model (tests/tests/standalone_qemu.rs); ignored by a plain `cargo test`, run here with
+#      --include-ignored (a missing QEMU or ELF fails them);
 #   5. the identifier's cost, size and stack table (scripts/firmware-bench.sh).
 # Exits non-zero at the first failure. LSSI_CI_SKIP_BENCH=1 leaves out step 5.
 set -euo pipefail
@@ -36,9 +38,9 @@ ls -l "$elf"
 step "firmware smoke test under QEMU"
 crates/lssi-firmware/scripts/qemu-check.sh
 
-step "replay through the QEMU firmware == lssi identify --f32"
+step "replay through the QEMU firmware == lssi identify --f32; the standalone instrument at 10 kHz"
 LSSI_FIRMWARE_ELF="$elf" \
-    cargo test --workspace --locked --test qemu -- --include-ignored --nocapture
+    cargo test --workspace --locked --release --test qemu --test standalone_qemu -- --include-ignored --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then
     step "identifier cost, size and stack on the Cortex-M4F"
