@@ -90,6 +90,9 @@ pub struct LinkStats {
     pub rx_crc_errors: u64,
     /// Waits that ended without a reply and caused a resend.
     pub timeouts: u64,
+    /// Times the batches in flight were cut shorter after losses (the device asked where it
+    /// was first).
+    pub rechunks: u64,
     /// Batches the device received again after applying them (its health counter).
     pub duplicates: u64,
     /// Bytes written to the device.
@@ -161,6 +164,8 @@ pub struct Health {
     pub duplicates: u32,
     /// Frames it received that decoded.
     pub frames_ok: u32,
+    /// Screenings it has run.
+    pub screenings: u32,
 }
 
 /// Why the link failed; each displays as one sentence naming the port.
@@ -411,7 +416,7 @@ impl Drop for Reader {
 }
 
 /// The shortest batch the adaptation goes down to (a frame of 4 samples is ~70 bytes).
-const MIN_ADAPTIVE_BATCH: usize = 4;
+const MIN_ADAPTIVE_BATCH: usize = 1;
 
 /// One batch on the wire, kept until acknowledged.
 #[derive(Debug)]
@@ -419,6 +424,8 @@ struct InFlight {
     seq: u32,
     frame: Vec<u8>,
     samples: usize,
+    /// Index of its first sample in the stream.
+    start: usize,
 }
 
 /// What a received frame means for the caller.
@@ -600,6 +607,7 @@ impl<'a> Link<'a> {
                                 crc_errors,
                                 duplicates,
                                 frames_ok,
+                                screenings,
                                 ..
                             } => {
                                 self.health = Some(Health {
@@ -608,6 +616,7 @@ impl<'a> Link<'a> {
                                     crc_errors: *crc_errors,
                                     duplicates: *duplicates,
                                     frames_ok: *frames_ok,
+                                    screenings: *screenings,
                                 });
                             }
                             _ => {}
@@ -759,6 +768,22 @@ impl<'a> Link<'a> {
                 resend = false;
                 batch_len = (batch_len / 2).max(MIN_ADAPTIVE_BATCH.min(max_batch));
                 clean = 0;
+                // Frames longer than the line now carries are resent in shorter batches, from
+                // the first sample the device has not applied (asked for: its Health counts
+                // them), numbered on from the sequence number it expects there. Only then is
+                // it safe: a batch whose ack was lost may have been applied.
+                if in_flight.iter().any(|b| b.samples > 2 * batch_len)
+                    && let Some((seq, start)) = self.resync(&mut in_flight)?
+                {
+                    in_flight.clear();
+                    next = seq as usize;
+                    offset = start;
+                    stale = None;
+                    last_progress = Instant::now();
+                    timeout = base_timeout;
+                    self.stats.rechunks += 1;
+                    continue;
+                }
                 for i in 0..in_flight.len() {
                     let frame = std::mem::take(&mut in_flight[i].frame);
                     let result = self.write_bytes(&frame);
@@ -782,6 +807,7 @@ impl<'a> Link<'a> {
                     seq,
                     frame,
                     samples: chunk.len(),
+                    start: offset - chunk.len(),
                 });
                 next += 1;
             }
@@ -865,6 +891,33 @@ impl<'a> Link<'a> {
         Ok(())
     }
 
+    /// Where the device is in the stream: asks for its Health (a `Query`, resent until
+    /// answered), whose sample count says how many samples it applied; drops the in-flight
+    /// batches it applied and returns the sequence number and first sample of the first one
+    /// it did not (`None`: the count falls inside no in-flight batch's start, so the
+    /// batches are resent as they are).
+    fn resync(&mut self, in_flight: &mut VecDeque<InFlight>) -> Result<Option<(u32, usize)>, LinkError> {
+        let port = self.port.clone();
+        let health = self.command(&HostMsg::Query, "the device's sample count (a Query)", |reply| match reply {
+            DeviceMsg::Health { samples, rejected, .. } => Some(Ok(samples + rejected)),
+            DeviceMsg::Nak { seq: CONTROL_SEQ, reason } => Some(Err(LinkError::Refused {
+                port: port.clone(),
+                command: "the query",
+                reason: *reason,
+            })),
+            _ => None,
+        })?;
+        let applied = usize::try_from(health).unwrap_or(usize::MAX);
+        let Some(pos) = in_flight.iter().position(|b| b.start == applied) else {
+            return Ok(None);
+        };
+        let seq = in_flight[pos].seq;
+        if seq > 0 {
+            self.acknowledge(in_flight, seq - 1);
+        }
+        Ok(Some((seq, applied)))
+    }
+
     /// Drops the batches up to `seq`; whether any was dropped.
     fn acknowledge(&mut self, in_flight: &mut VecDeque<InFlight>, seq: u32) -> bool {
         let mut any = false;
@@ -889,6 +942,21 @@ impl<'a> Link<'a> {
     /// `Health`. Returns the snapshot (`None`: no model yet) and the health counters, and
     /// settles `samples_lost` and `crc_errors` from them.
     pub fn query(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {
+        let mut tries = 0;
+        loop {
+            let (model, health) = self.query_once()?;
+            // A Health that reports screenings but came without a Model: the Model frame was
+            // lost on the line (a model exists once a screening has made one). Asking again
+            // does not screen again (no sample came since), so the answer is the same model.
+            tries += 1;
+            if model.is_some() || health.screenings == 0 || tries >= 8 {
+                return Ok((model, health));
+            }
+            self.stats.timeouts += 1;
+        }
+    }
+
+    fn query_once(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {
         let mut model = None;
         let port = self.port.clone();
         let health = self.command(
@@ -905,6 +973,7 @@ impl<'a> Link<'a> {
                     crc_errors,
                     duplicates,
                     frames_ok,
+                    screenings,
                     ..
                 } => Some(Ok(Health {
                     samples: *samples,
@@ -912,6 +981,7 @@ impl<'a> Link<'a> {
                     crc_errors: *crc_errors,
                     duplicates: *duplicates,
                     frames_ok: *frames_ok,
+                    screenings: *screenings,
                 })),
                 DeviceMsg::Nak {
                     seq: CONTROL_SEQ,

@@ -1,0 +1,309 @@
+//! The lssi standalone instrument on an STM32F411 ("Black Pill", 25 MHz crystal, run at
+//! 96 MHz): TIM2 samples the sensor on PA0 through ADC1 at 10 kHz, the identify task runs on
+//! a pended EXTI1 interrupt, thread mode screens on the snapshot and sends Model and Health
+//! frames on USART1 (PA9 TX, PA10 RX, 921,600 baud) every second. defmt logs go over RTT
+//! (`cargo run --release` with probe-rs). Wiring and use: docs/hardware.md.
+//!
+//! The application is `lssi_device::standalone`, the same code the QEMU image runs
+//! (crates/lssi-firmware/src/bin/lssi-standalone.rs) and its tests exercise; this file wires
+//! it to this part's peripherals through the vendor HAL.
+//!
+//! | context | priority | does |
+//! |---|---|---|
+//! | TIM2 update | 0x00 | one ADC conversion → the 64-place queue; pends EXTI1 |
+//! | USART1 | 0x40 | RX bytes into a ring; TX ring out on TXE |
+//! | EXTI1 (pended) | 0x80 | queue → identifier rows; the snapshot at a screening point |
+//! | thread mode | lowest | screening on the snapshot, frames, host commands, `wfi` |
+
+#![no_std]
+#![no_main]
+#![deny(unsafe_code)]
+
+use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::{DWT, NVIC};
+use cortex_m_rt::entry;
+use critical_section::Mutex;
+use defmt_rtt as _;
+use heapless::spsc::{Consumer, Producer, Queue};
+use lssi_core::{Config, Snapshot};
+use lssi_device::Transport;
+use lssi_device::standalone::{
+    Clock, Engine, Event, EventQueue, Reading, Reporter, Sampler, Shared,
+};
+use panic_probe as _;
+use stm32f4xx_hal::{
+    adc::{
+        Adc,
+        config::{AdcConfig, SampleTime},
+    },
+    gpio::{Analog, PA0},
+    pac::{self, ADC1, Interrupt, TIM2, USART1, interrupt},
+    prelude::*,
+    serial::{Rx, Tx},
+    timer::{CounterHz, Event as TimerEvent},
+};
+
+/// Window capacity, library capacity, channels (x only: one ADC channel).
+const W: usize = 256;
+const P: usize = 16;
+const C: usize = 1;
+/// The core clock (the DWT cycle counter counts it).
+const CORE_HZ: u32 = 96_000_000;
+/// The sampling rate of the image's configuration.
+const RATE_HZ: u32 = 10_000;
+/// The ADC's reference, volts, and its full scale.
+const VREF: f32 = 3.3;
+const FULL_SCALE: f32 = 4095.0;
+
+type Id = Engine<W, P, C>;
+
+static SHARED: Shared<P> = Shared::new();
+static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
+static IDENTIFY: Mutex<Cell<Option<&'static mut Id>>> = Mutex::new(Cell::new(None));
+static EVENTS: Mutex<RefCell<Option<Consumer<'static, Event>>>> = Mutex::new(RefCell::new(None));
+static UART: Mutex<RefCell<Option<Uart>>> = Mutex::new(RefCell::new(None));
+/// Received bytes lost (ring full).
+static RX_LOST: AtomicU32 = AtomicU32::new(0);
+
+/// What TIM2's interrupt owns.
+struct Sensor {
+    timer: CounterHz<TIM2>,
+    adc: Adc<ADC1>,
+    pin: PA0<Analog>,
+    sampler: Sampler<'static>,
+}
+
+/// What USART1's interrupt owns.
+struct Uart {
+    tx: Tx<USART1>,
+    rx: Rx<USART1>,
+    rx_in: Producer<'static, u8>,
+    tx_out: Consumer<'static, u8>,
+}
+
+/// The cycle counter: 96 MHz ticks, wrapping every 44 s.
+struct BoardClock;
+
+impl Clock for BoardClock {
+    const HZ: u32 = CORE_HZ;
+    fn now(&self) -> u32 {
+        DWT::cycle_count()
+    }
+}
+
+/// The image's configuration: lssi-core's defaults at 10 kHz, x only, a screening a second.
+fn default_config() -> Config {
+    Config {
+        sample_period: 1.0 / RATE_HZ as f64,
+        screening_period: RATE_HZ,
+        ..Config::default()
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+        defmt::panic!("peripherals taken twice")
+    };
+    cp.DCB.enable_trace();
+    cp.DWT.enable_cycle_counter();
+    let rcc = dp.RCC.constrain();
+    let clocks = rcc.cfgr.use_hse(25.MHz()).sysclk(CORE_HZ.Hz()).freeze();
+
+    let engine = cortex_m::singleton!(: Id = Engine::new());
+    let snapshot = cortex_m::singleton!(: Snapshot<f32, P> = Snapshot::empty());
+    let queue = cortex_m::singleton!(: EventQueue = Queue::new());
+    let rx_ring = cortex_m::singleton!(: Queue<u8, 257> = Queue::new());
+    let tx_ring = cortex_m::singleton!(: Queue<u8, 1537> = Queue::new());
+    let (Some(engine), Some(snapshot), Some(queue), Some(rx_ring), Some(tx_ring)) =
+        (engine, snapshot, queue, rx_ring, tx_ring)
+    else {
+        defmt::panic!("start-up ran twice")
+    };
+    let config = default_config();
+    if let Err(e) = engine.configure(config) {
+        defmt::panic!(
+            "the image's configuration is refused: {}",
+            defmt::Debug2Format(&e)
+        );
+    }
+    SHARED.give_snapshot(snapshot);
+    let (producer, consumer) = queue.split();
+    let (rx_in, mut rx_out) = rx_ring.split();
+    let (tx_in, tx_out) = tx_ring.split();
+
+    let gpioa = dp.GPIOA.split();
+    let pin = gpioa.pa0.into_analog();
+    let adc = Adc::adc1(dp.ADC1, true, AdcConfig::default());
+    let Ok(serial) = dp
+        .USART1
+        .serial((gpioa.pa9, gpioa.pa10), 921_600.bps(), &clocks)
+    else {
+        defmt::panic!("USART1 cannot run at 921600 baud with these clocks")
+    };
+    let (tx, mut rx) = serial.split();
+    rx.listen();
+    let mut timer = dp.TIM2.counter_hz(&clocks);
+    if timer.start(RATE_HZ.Hz()).is_err() {
+        defmt::panic!("TIM2 cannot run at {=u32} Hz", RATE_HZ);
+    }
+    timer.listen(TimerEvent::Update);
+
+    critical_section::with(|cs| {
+        SENSOR.borrow_ref_mut(cs).replace(Sensor {
+            timer,
+            adc,
+            pin,
+            sampler: Sampler::new(producer),
+        });
+        IDENTIFY.borrow(cs).set(Some(engine));
+        EVENTS.borrow_ref_mut(cs).replace(consumer);
+        UART.borrow_ref_mut(cs).replace(Uart {
+            tx,
+            rx,
+            rx_in,
+            tx_out,
+        });
+    });
+    defmt::info!(
+        "lssi on STM32F411: {=u32} Hz on PA0, frames on USART1",
+        RATE_HZ
+    );
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config, RATE_HZ as f32, CORE_HZ);
+    let mut link = Link { tx: tx_in };
+
+    #[allow(unsafe_code)]
+    // SAFETY: priorities are set before the interrupts are unmasked; critical sections here
+    // disable interrupts (cortex-m's single-core implementation), none relies on masking by
+    // priority.
+    unsafe {
+        cp.NVIC.set_priority(Interrupt::TIM2, 0x00);
+        cp.NVIC.set_priority(Interrupt::USART1, 0x40);
+        cp.NVIC.set_priority(Interrupt::EXTI1, 0x80);
+        NVIC::unmask(Interrupt::TIM2);
+        NVIC::unmask(Interrupt::USART1);
+        NVIC::unmask(Interrupt::EXTI1);
+    }
+
+    let mut chunk = [0u8; 64];
+    loop {
+        let mut n = 0;
+        while n < chunk.len() {
+            match rx_out.dequeue() {
+                Some(b) => {
+                    chunk[n] = b;
+                    n += 1;
+                }
+                None => break,
+            }
+        }
+        let Ok(()) = reporter.receive::<_, BoardClock>(&chunk[..n], &SHARED, &mut link);
+        let Ok(()) = reporter.poll(
+            &SHARED,
+            &mut link,
+            &BoardClock,
+            |f| {
+                let t0 = BoardClock.now();
+                f();
+                BoardClock.now().wrapping_sub(t0)
+            },
+            || NVIC::pend(Interrupt::EXTI1),
+        );
+        if n == 0 {
+            cortex_m::interrupt::free(|_| {
+                if !SHARED.screening_waiting() && !rx_out.ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+/// Thread mode's end of USART1: frames into the TX ring, sent by the USART1 interrupt.
+struct Link {
+    tx: Producer<'static, u8>,
+}
+
+impl Transport for Link {
+    type Error = core::convert::Infallible;
+
+    fn read(&mut self, _: &mut [u8]) -> Result<usize, Self::Error> {
+        Ok(0)
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> Result<(), Self::Error> {
+        for &b in bytes {
+            while self.tx.enqueue(b).is_err() {
+                NVIC::pend(Interrupt::USART1);
+                cortex_m::asm::wfi();
+            }
+        }
+        NVIC::pend(Interrupt::USART1);
+        Ok(())
+    }
+}
+
+#[interrupt]
+fn TIM2() {
+    let stamp = BoardClock.now();
+    critical_section::with(|cs| {
+        if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
+            let _ = sensor.timer.wait();
+            let code = sensor.adc.convert(&sensor.pin, SampleTime::Cycles_56);
+            // A reading at either rail is saturated: passed on as NaN, which the identifier
+            // counts as rejected and skips like a gap (sampling goes on).
+            let x = if code == 0 || f32::from(code) >= FULL_SCALE {
+                f32::NAN
+            } else {
+                f32::from(code) * (VREF / FULL_SCALE)
+            };
+            let reading = Reading {
+                x,
+                v: None,
+                u: None,
+            };
+            sensor.sampler.tick(stamp, reading, &SHARED.counters);
+        }
+    });
+    NVIC::pend(Interrupt::EXTI1);
+}
+
+#[interrupt]
+fn EXTI1() {
+    let engine = critical_section::with(|cs| IDENTIFY.borrow(cs).take());
+    let events = critical_section::with(|cs| EVENTS.borrow_ref_mut(cs).take());
+    if let (Some(engine), Some(mut events)) = (engine, events) {
+        engine.run(&mut events, &SHARED, &BoardClock);
+        critical_section::with(|cs| {
+            IDENTIFY.borrow(cs).set(Some(engine));
+            EVENTS.borrow_ref_mut(cs).replace(events);
+        });
+    }
+}
+
+#[interrupt]
+fn USART1() {
+    critical_section::with(|cs| {
+        let mut uart = UART.borrow_ref_mut(cs);
+        let Some(uart) = uart.as_mut() else {
+            return;
+        };
+        while let Ok(b) = uart.rx.read() {
+            if uart.rx_in.enqueue(b).is_err() {
+                RX_LOST.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        if uart.tx_out.ready() {
+            if uart.tx.is_tx_empty()
+                && let Some(b) = uart.tx_out.dequeue()
+            {
+                let _ = uart.tx.write(b);
+            }
+            uart.tx.listen();
+        } else {
+            uart.tx.unlisten();
+        }
+    });
+}
