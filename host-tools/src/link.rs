@@ -896,17 +896,29 @@ impl<'a> Link<'a> {
     /// batches it applied and returns the sequence number and first sample of the first one
     /// it did not (`None`: the count falls inside no in-flight batch's start, so the
     /// batches are resent as they are).
-    fn resync(&mut self, in_flight: &mut VecDeque<InFlight>) -> Result<Option<(u32, usize)>, LinkError> {
+    fn resync(
+        &mut self,
+        in_flight: &mut VecDeque<InFlight>,
+    ) -> Result<Option<(u32, usize)>, LinkError> {
         let port = self.port.clone();
-        let health = self.command(&HostMsg::Query, "the device's sample count (a Query)", |reply| match reply {
-            DeviceMsg::Health { samples, rejected, .. } => Some(Ok(samples + rejected)),
-            DeviceMsg::Nak { seq: CONTROL_SEQ, reason } => Some(Err(LinkError::Refused {
-                port: port.clone(),
-                command: "the query",
-                reason: *reason,
-            })),
-            _ => None,
-        })?;
+        let health = self.command(
+            &HostMsg::Query,
+            "the device's sample count (a Query)",
+            |reply| match reply {
+                DeviceMsg::Health {
+                    samples, rejected, ..
+                } => Some(Ok(samples + rejected)),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the query",
+                    reason: *reason,
+                })),
+                _ => None,
+            },
+        )?;
         let applied = usize::try_from(health).unwrap_or(usize::MAX);
         let Some(pos) = in_flight.iter().position(|b| b.start == applied) else {
             return Ok(None);

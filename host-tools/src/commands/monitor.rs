@@ -484,7 +484,9 @@ fn summary(seen: &Seen, session: &Session, rate: f64) -> Result<Value, CliError>
     let terms = match seen.model.as_ref().filter(|_| seen.finished) {
         Some(model) => {
             let report = report_from_snapshot(model, &session.config, session.omega_estimated)
-                .map_err(|e| CliError::Device(format!("the device's model cannot be read: {e}.")))?;
+                .map_err(|e| {
+                    CliError::Device(format!("the device's model cannot be read: {e}."))
+                })?;
             serde_json::to_value(report)
                 .ok()
                 .and_then(|r| r.get("terms").cloned())
