@@ -120,6 +120,11 @@ pub struct Status {
     pub screenings: u64,
     /// Ring buffer fill.
     pub buffer_fill: u16,
+    /// Mean clock ticks a sample's push took (its row, and at a screening point the
+    /// snapshot copy), over every sample since configured.
+    pub cost_mean: u32,
+    /// The most clock ticks one push took.
+    pub cost_max: u32,
     /// The recording ended and its final snapshot was taken.
     pub ended: bool,
 }
@@ -144,6 +149,8 @@ impl<const P: usize> Shared<P> {
                 rows: 0,
                 screenings: 0,
                 buffer_fill: 0,
+                cost_mean: 0,
+                cost_max: 0,
                 ended: false,
             })),
         }
@@ -252,6 +259,10 @@ pub struct Engine<const W: usize, const P: usize, const C: usize> {
     /// The recording ended; its final snapshot is still to be taken.
     final_pending: bool,
     ended: bool,
+    /// Clock ticks of the pushes since configured: sum, count, largest.
+    cost_sum: u64,
+    cost_count: u64,
+    cost_max: u32,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Default for Engine<W, P, C> {
@@ -269,6 +280,9 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             fresh: false,
             final_pending: false,
             ended: false,
+            cost_sum: 0,
+            cost_count: 0,
+            cost_max: 0,
         }
     }
 
@@ -284,6 +298,9 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         self.fresh = true;
         self.final_pending = false;
         self.ended = false;
+        self.cost_sum = 0;
+        self.cost_count = 0;
+        self.cost_max = 0;
         Ok(())
     }
 
@@ -310,8 +327,14 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     stamp,
                     reading,
                 } => {
+                    let start = clock.now();
                     self.push(index, reading, shared);
-                    let latency = clock.now().wrapping_sub(stamp);
+                    let done = clock.now();
+                    let cost = done.wrapping_sub(start);
+                    self.cost_sum = self.cost_sum.saturating_add(u64::from(cost));
+                    self.cost_count += 1;
+                    self.cost_max = self.cost_max.max(cost);
+                    let latency = done.wrapping_sub(stamp);
                     shared
                         .counters
                         .latency_max
@@ -393,6 +416,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     rows: c.rows,
                     screenings: c.screenings,
                     buffer_fill: u16::try_from(id.buffered()).unwrap_or(u16::MAX),
+                    cost_mean: self
+                        .cost_sum
+                        .checked_div(self.cost_count)
+                        .map_or(0, |m| u32::try_from(m).unwrap_or(u32::MAX)),
+                    cost_max: self.cost_max,
                     ended: self.ended && !self.final_pending,
                 }
             }
@@ -596,8 +624,8 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             samples: s.samples,
             rejected: s.rejected,
             buffer_fill: s.buffer_fill,
-            cost_mean: 0,
-            cost_max: 0,
+            cost_mean: s.cost_mean,
+            cost_max: s.cost_max,
             cost_unit: CostUnit::Ticks,
             watchdog: self.watchdog,
             crc_errors: self.crc_errors,
