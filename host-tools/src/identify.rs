@@ -225,6 +225,14 @@ pub fn configure(
     let mut estimated = false;
     if options.harmonics > 0 {
         config.omega = match options.omega {
+            // Above the Nyquist frequency sin(Ωt) and cos(Ωt) alias onto a lower frequency:
+            // the model's forcing would not be the one asked for.
+            Some(w) if w >= std::f64::consts::PI / dt => {
+                return Err(IdentifyError(format!(
+                    "{file}: --omega {w} rad/s is at or above the Nyquist frequency of this recording (π / {dt:.4e} s = {:.6} rad/s), so sin(Ωt) and cos(Ωt) would alias; give an Ω below it.",
+                    std::f64::consts::PI / dt
+                )));
+            }
             Some(w) => w,
             None => {
                 estimated = true;

@@ -38,6 +38,7 @@ pub mod identify;
 pub mod link;
 pub mod noise;
 pub mod ode;
+pub mod output;
 pub mod plot;
 pub mod recording;
 pub mod refine;

@@ -53,8 +53,12 @@ fn run(cli: &Cli) -> Result<(), CliError> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(&cli) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => {
+            lssi_host::output::flush();
+            ExitCode::SUCCESS
+        }
         Err(error) => {
+            lssi_host::output::flush();
             eprintln!("lssi: {error}");
             ExitCode::from(error.exit_code())
         }

@@ -174,9 +174,9 @@ pub fn run(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
             (Err(error), false, false) => out.push_str(&format!("== {file}\nlssi: {error}\n\n")),
         }
     }
-    std::io::stdout()
-        .write_all(out.as_bytes())
-        .map_err(|e| CliError::Input(format!("standard output cannot be written ({e}).")))?;
+    if let Err(e) = std::io::stdout().write_all(out.as_bytes()) {
+        crate::output::fail(&e)
+    }
     let failed = results.iter().filter(|r| r.is_err()).count();
     if failed > 0 {
         return Err(CliError::Input(format!(

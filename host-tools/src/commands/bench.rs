@@ -96,16 +96,16 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     } else {
         &[NoiseKind::Paper, NoiseKind::Uniform0]
     };
-    println!(
+    crate::outln!(
         "eq. 17, t in [0, 100] s, dt = 0.001 s, seed {seed}; library: 1, monomials of (x, v) to order 3, sin/cos(kt) k = 1..3"
     );
-    println!(
+    crate::outln!(
         "errors in % of each true coefficient (100 = term missed); spurious = terms not in eq. 17\n"
     );
-    println!(
+    crate::outln!(
         "| case | x | v | x^2 | x^3 | x^2*v | cos(2t) | f32 mean | f32 spurious | f64 mean | f64 spurious | no smoothing mean | no smoothing spurious |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    crate::outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for &epsilon in epsilons {
         for &kind in kinds {
             for delta in [0.001, 0.01, 0.1] {
@@ -141,7 +141,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                         Observe::Xv => "x and x'",
                         Observe::X => "x only",
                     };
-                    println!(
+                    crate::outln!(
                         "| ε = {epsilon}, {noise}, δ = {delta}, {channels} | {} | {} |",
                         per_term
                             .iter()
@@ -172,7 +172,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let start = Instant::now();
     let _ = identify_recording(&recording, &options(true, true))?;
     let whole = start.elapsed().as_secs_f64();
-    println!(
+    crate::outln!(
         "\nthroughput, {} samples, f32, one core: streaming identifier {:.2} M samples/s ({:.3} s); with the window choice from the data {:.2} M samples/s ({:.3} s)",
         report.samples,
         report.samples as f64 / streaming / 1e6,

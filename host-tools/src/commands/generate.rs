@@ -316,7 +316,7 @@ fn run_eveh(args: &EvehArgs) -> Result<(), CliError> {
         });
     }
     write_eveh(&args.out, &json, &generated)?;
-    println!(
+    crate::outln!(
         "wrote {} ({} samples of {} over {} s at {} Hz) and {}",
         args.out.display(),
         generated.generated.t.len(),
@@ -367,7 +367,7 @@ fn run_paper(args: &PaperArgs) -> Result<(), CliError> {
         });
     }
     write_generated(&args.out, &json, &generated)?;
-    println!(
+    crate::outln!(
         "wrote {} ({} samples of {} over {} s) and {}",
         args.out.display(),
         generated.t.len(),

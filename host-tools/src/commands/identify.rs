@@ -257,11 +257,11 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
             text.push_str(&serde_json::to_string(refined).unwrap_or_default());
             text.push('}');
         }
-        println!("{text}");
+        crate::outln!("{text}");
     } else {
-        print!("{}", identify::render(&report));
+        crate::out!("{}", identify::render(&report));
         if let Some(refined) = &refined {
-            print!("{}", refined.render(&args.unit));
+            crate::out!("{}", refined.render(&args.unit));
         }
     }
     Ok(())
@@ -344,13 +344,13 @@ fn run_track(
         .or(truth_change)
         .map(|at| track::settle(&track, &reference, at, args.settle_tol));
     if args.json {
-        print!("{}", track::to_json_lines(&track));
+        crate::out!("{}", track::to_json_lines(&track));
         if let Some(s) = &settle {
             let line = serde_json::json!({ "settle": s, "reference": reference_name });
-            println!("{line}");
+            crate::outln!("{line}");
         }
     } else {
-        print!("{}", track::to_csv(&track));
+        crate::out!("{}", track::to_csv(&track));
         if let Some(s) = &settle {
             eprintln!("{}", settle_sentence(s, reference_name));
         }

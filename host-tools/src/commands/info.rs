@@ -22,7 +22,7 @@ pub struct InfoArgs {
 /// Runs `lssi info`.
 pub fn run(args: &InfoArgs) -> Result<(), CliError> {
     let recording = Recording::read(&args.file, &args.columns)?;
-    print!("{}", describe(&recording));
+    crate::out!("{}", describe(&recording));
     Ok(())
 }
 

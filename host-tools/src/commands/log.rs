@@ -467,13 +467,9 @@ pub fn run(args: &LogArgs) -> Result<(), CliError> {
     } else {
         out.write_all(render_text(&entries).as_bytes())
     };
-    // A closed pipe (`| head`) is not an error of the log.
-    if let Err(e) = written
-        && e.kind() != std::io::ErrorKind::BrokenPipe
-    {
-        return Err(CliError::Device(format!(
-            "cannot write to standard output: {e}."
-        )));
+    // A closed pipe (`| head`) or a full disk: exit 1 (quietly for the pipe).
+    if let Err(e) = written {
+        crate::output::fail(&e)
     }
     if let Some(tail) = partial {
         eprintln!(

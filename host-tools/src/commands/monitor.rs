@@ -102,7 +102,7 @@ pub struct Seen {
 pub fn run(args: &MonitorArgs) -> Result<(), CliError> {
     let summary = monitor(args, &mut std::io::stdout())?;
     if let Some(summary) = summary {
-        println!("{summary}");
+        crate::outln!("{summary}");
     }
     Ok(())
 }
@@ -543,7 +543,7 @@ impl<'a> View<'a> {
         seen: &Seen,
         session: &(Config, bool),
     ) -> Result<(), CliError> {
-        let write = |e: std::io::Error| CliError::Device(format!("cannot write the output: {e}."));
+        let write = |e: std::io::Error| -> CliError { crate::output::fail(&e) };
         if self.json {
             writeln!(self.out, "{}", message_json(message, session)).map_err(write)?;
             return Ok(());

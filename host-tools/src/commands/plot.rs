@@ -59,11 +59,11 @@ pub fn run(args: &PlotArgs) -> Result<(), CliError> {
     if args.identify.json {
         let object =
             serde_json::json!({ "figures": written, "skipped": skipped, "report": report });
-        println!("{object}");
+        crate::outln!("{object}");
     } else {
         for w in &written {
-            println!("{}", w.png.display());
-            println!("{}", w.svg.display());
+            crate::outln!("{}", w.png.display());
+            crate::outln!("{}", w.svg.display());
         }
     }
     Ok(())

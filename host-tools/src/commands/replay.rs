@@ -393,10 +393,10 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
 
 fn print_report(report: &ReplayReport, json: bool) {
     if json {
-        println!("{}", serde_json::to_string(report).unwrap_or_default());
+        crate::outln!("{}", serde_json::to_string(report).unwrap_or_default());
     } else {
-        print!("{}", identify::render(&report.report));
-        print!("{}", render_link(&report.link));
+        crate::out!("{}", identify::render(&report.report));
+        crate::out!("{}", render_link(&report.link));
     }
 }
 
@@ -441,14 +441,16 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
         path: dir.clone(),
         source: e,
     })?;
-    println!(
+    crate::outln!(
         "lssi replay of {} through firmware-sim (pty paced at the baud rate, no faults), {} samples per batch, window {}\n",
         args.file.display(),
         args.batch,
         args.window
     );
-    println!("| baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |");
-    println!("|---:|---:|---:|---:|---:|---:|");
+    crate::outln!(
+        "| baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |"
+    );
+    crate::outln!("|---:|---:|---:|---:|---:|---:|");
     let mut result = Ok(());
     for &baud in &args.baud {
         let replay_args = ReplayArgs {
@@ -464,7 +466,7 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
                 let link = &report.link;
                 let rate = link.samples_per_second();
                 let bound = link.bound(baud);
-                println!(
+                crate::outln!(
                     "| {baud} | {:.2} | {rate:.0} | {bound:.0} | {:.1} | {} |",
                     link.bytes_per_sample(),
                     if bound > 0.0 {

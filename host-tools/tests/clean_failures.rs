@@ -1,0 +1,81 @@
+//! Clean failures: a full standard output and an Ω above Nyquist end `lssi` with one line
+//! and the documented exit code, never a panic.
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
+use std::fs::File;
+use std::process::{Command, Stdio};
+
+fn repository_file(name: &str) -> String {
+    format!("{}/../{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `lssi identify … > /dev/full`: exit 1, one line naming the error (was: a panic, exit 101).
+#[test]
+fn a_full_standard_output_exits_1_with_one_line() {
+    let Ok(full) = File::create("/dev/full") else {
+        eprintln!("no /dev/full on this system: nothing to test");
+        return;
+    };
+    for args in [
+        vec!["identify", "data/eveh-bistable.csv"],
+        vec!["identify", "data/eveh-bistable.csv", "--json"],
+        vec!["info", "data/eveh-bistable.csv"],
+    ] {
+        let args: Vec<String> = args
+            .iter()
+            .map(|a| {
+                if a.starts_with("data/") {
+                    repository_file(a)
+                } else {
+                    (*a).to_string()
+                }
+            })
+            .collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_lssi"))
+            .args(&args)
+            .stdout(Stdio::from(full.try_clone().unwrap()))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains("cannot write the output"), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}
+
+/// `--omega` at or above π / Δt is refused: exit 2, a sentence naming the flag and the limit.
+#[test]
+fn omega_above_nyquist_is_refused() {
+    let out = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args([
+            "identify",
+            &repository_file("data/eveh-bistable.csv"),
+            "--omega",
+            "7000",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--omega 7000") && stderr.contains("Nyquist"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    // Just below it is accepted.
+    let out = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args([
+            "identify",
+            &repository_file("data/eveh-bistable.csv"),
+            "--omega",
+            "21.4",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
