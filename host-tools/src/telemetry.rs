@@ -125,6 +125,20 @@ pub struct LogContents {
     pub records: Vec<Record>,
     /// A partial last record, skipped.
     pub partial_tail: Option<PartialTail>,
+    /// Damaged stretches skipped: the reader went on at the next byte where a whole record
+    /// with a good CRC starts.
+    pub skipped: Vec<Skipped>,
+}
+
+/// A damaged stretch of a log, skipped by the reader.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Skipped {
+    /// Where it starts.
+    pub offset: u64,
+    /// Its length in bytes.
+    pub len: u64,
+    /// What was wrong with the record that started there, as the end of a sentence.
+    pub reason: String,
 }
 
 /// Why a log cannot be read.
@@ -134,15 +148,6 @@ pub enum LogError {
     NotALog,
     /// The file starts with the magic of another format version.
     Version(u8),
-    /// A whole record fails its check: `records` whole records precede it.
-    Corrupt {
-        /// Its offset.
-        offset: u64,
-        /// Why, as the end of a sentence.
-        reason: String,
-        /// The whole records before it.
-        records: Vec<Record>,
-    },
 }
 
 impl fmt::Display for LogError {
@@ -156,15 +161,6 @@ impl fmt::Display for LogError {
                 "the file is a telemetry log of format version {v}, but this build reads version {}",
                 MAGIC[7]
             ),
-            LogError::Corrupt {
-                offset,
-                reason,
-                records,
-            } => write!(
-                f,
-                "the record at byte {offset} is corrupt ({reason}); the {} records before it are intact",
-                records.len()
-            ),
         }
     }
 }
@@ -174,8 +170,10 @@ impl std::error::Error for LogError {}
 /// Reads every whole record of a log held in memory.
 ///
 /// A record that runs past the end of the file is a partial tail (reported in
-/// [`LogContents::partial_tail`], not an error); a whole record whose CRC or kind is wrong is
-/// [`LogError::Corrupt`], which carries the records before it.
+/// [`LogContents::partial_tail`], not an error). A whole record whose length, CRC or kind is
+/// wrong starts a damaged stretch: the reader skips to the next byte where a whole record with
+/// a good CRC starts and goes on from there ([`LogContents::skipped`]), so every intact record
+/// is read. Only a file that is not a log, or a log of another version, is an error.
 pub fn read_log(bytes: &[u8]) -> Result<LogContents, LogError> {
     if bytes.len() < MAGIC.len() {
         if MAGIC.starts_with(bytes) {
@@ -186,6 +184,7 @@ pub fn read_log(bytes: &[u8]) -> Result<LogContents, LogError> {
                     offset: 0,
                     len: bytes.len() as u64,
                 }),
+                skipped: Vec::new(),
             });
         }
         return Err(LogError::NotALog);
@@ -196,64 +195,86 @@ pub fn read_log(bytes: &[u8]) -> Result<LogContents, LogError> {
     if bytes[7] != MAGIC[7] {
         return Err(LogError::Version(bytes[7]));
     }
-    let mut records = Vec::new();
+    let mut contents = LogContents {
+        records: Vec::new(),
+        partial_tail: None,
+        skipped: Vec::new(),
+    };
     let mut at = MAGIC.len();
     while at < bytes.len() {
-        let offset = at as u64;
-        let rest = &bytes[at..];
-        let partial = || PartialTail {
-            offset,
-            len: rest.len() as u64,
-        };
-        let Some(header) = rest.get(..RECORD_HEADER_LEN) else {
-            return Ok(LogContents {
-                records,
-                partial_tail: Some(partial()),
-            });
-        };
-        let len = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
-        let crc = u32::from_le_bytes([header[4], header[5], header[6], header[7]]);
-        if !(BODY_HEADER_LEN..=MAX_BODY_LEN).contains(&len) {
-            return Err(LogError::Corrupt {
-                offset,
-                reason: format!("its length field says {len} bytes"),
-                records,
-            });
+        match record_at(bytes, at) {
+            Parsed::Whole(record, next) => {
+                contents.records.push(record);
+                at = next;
+            }
+            parsed => {
+                let resume = (at + 1..bytes.len())
+                    .find(|&k| matches!(record_at(bytes, k), Parsed::Whole(..)));
+                let reason = match (parsed, resume) {
+                    // Runs past the end with nothing whole after it: a stopped writer's tail.
+                    (Parsed::Partial, None) => {
+                        contents.partial_tail = Some(PartialTail {
+                            offset: at as u64,
+                            len: (bytes.len() - at) as u64,
+                        });
+                        break;
+                    }
+                    (Parsed::Damaged(reason), _) => reason,
+                    _ => "its length field runs past the end of the file".into(),
+                };
+                let resume = resume.unwrap_or(bytes.len());
+                contents.skipped.push(Skipped {
+                    offset: at as u64,
+                    len: (resume - at) as u64,
+                    reason,
+                });
+                at = resume;
+            }
         }
-        let Some(body) = rest.get(RECORD_HEADER_LEN..RECORD_HEADER_LEN + len) else {
-            return Ok(LogContents {
-                records,
-                partial_tail: Some(partial()),
-            });
-        };
-        if CRC32C.checksum(body) != crc {
-            return Err(LogError::Corrupt {
-                offset,
-                reason: "its CRC-32C does not match".into(),
-                records,
-            });
-        }
-        let Some(kind) = RecordKind::from_code(body[0]) else {
-            return Err(LogError::Corrupt {
-                offset,
-                reason: format!("its kind byte is {}", body[0]),
-                records,
-            });
-        };
-        let mut time = [0u8; 8];
-        time.copy_from_slice(&body[1..BODY_HEADER_LEN]);
-        records.push(Record {
+    }
+    Ok(contents)
+}
+
+/// What starts at a byte of a log.
+enum Parsed {
+    /// A whole record with a good CRC, and where the next one starts.
+    Whole(Record, usize),
+    /// A record that runs past the end of the file.
+    Partial,
+    /// Not a record: why.
+    Damaged(String),
+}
+
+fn record_at(bytes: &[u8], at: usize) -> Parsed {
+    let rest = &bytes[at..];
+    let Some(header) = rest.get(..RECORD_HEADER_LEN) else {
+        return Parsed::Partial;
+    };
+    let len = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
+    let crc = u32::from_le_bytes([header[4], header[5], header[6], header[7]]);
+    if !(BODY_HEADER_LEN..=MAX_BODY_LEN).contains(&len) {
+        return Parsed::Damaged(format!("its length field says {len} bytes"));
+    }
+    let Some(body) = rest.get(RECORD_HEADER_LEN..RECORD_HEADER_LEN + len) else {
+        return Parsed::Partial;
+    };
+    if CRC32C.checksum(body) != crc {
+        return Parsed::Damaged("its CRC-32C does not match".into());
+    }
+    let Some(kind) = RecordKind::from_code(body[0]) else {
+        return Parsed::Damaged(format!("its kind byte is {}", body[0]));
+    };
+    let mut time = [0u8; 8];
+    time.copy_from_slice(&body[1..BODY_HEADER_LEN]);
+    Parsed::Whole(
+        Record {
             kind,
             time_us: u64::from_le_bytes(time),
             data: body[BODY_HEADER_LEN..].to_vec(),
-            offset,
-        });
-        at += RECORD_HEADER_LEN + len;
-    }
-    Ok(LogContents {
-        records,
-        partial_tail: None,
-    })
+            offset: at as u64,
+        },
+        at + RECORD_HEADER_LEN + len,
+    )
 }
 
 /// The host clock in µs since the Unix epoch (0 if the clock is before it).
@@ -402,13 +423,46 @@ mod tests {
     }
 
     #[test]
-    fn a_flipped_bit_in_a_whole_record_is_corrupt_and_keeps_the_records_before_it() {
+    fn a_flipped_bit_in_a_whole_record_is_skipped_and_the_records_around_it_are_kept() {
         let mut bytes = log_with(&[(RecordKind::Note, b"one"), (RecordKind::Note, b"two")]);
         let last = bytes.len() - 1;
         bytes[last] ^= 0x10;
-        match read_log(&bytes) {
-            Err(LogError::Corrupt { records, .. }) => assert_eq!(records.len(), 1),
-            other => panic!("expected a corrupt record, got {other:?}"),
+        let contents = read_log(&bytes).unwrap();
+        assert_eq!(contents.records.len(), 1);
+        assert_eq!(contents.skipped.len(), 1);
+        assert!(contents.skipped[0].reason.contains("CRC"));
+    }
+
+    /// Resynchronisation: damage in record 2 of 5 (its CRC, then its length field) loses
+    /// record 2 only; records 1, 3, 4 and 5 are read, and the skipped stretch is reported.
+    #[test]
+    fn the_reader_resynchronises_after_a_damaged_record() {
+        let records: Vec<(RecordKind, &[u8])> = vec![
+            (RecordKind::Session, b"{}"),
+            (RecordKind::Frame, b"second record"),
+            (RecordKind::Note, b"third"),
+            (RecordKind::Frame, &[9, 8, 7, 6]),
+            (RecordKind::Note, b"fifth"),
+        ];
+        let clean = log_with(&records);
+        let whole = read_log(&clean).unwrap();
+        let second = whole.records[1].offset as usize;
+        let third = whole.records[2].offset as usize;
+        for damage in [second + RECORD_HEADER_LEN + 3, second, second + 2] {
+            let mut bytes = clean.clone();
+            bytes[damage] ^= 0xA5;
+            let contents = read_log(&bytes).unwrap();
+            let kept: Vec<&Record> = contents.records.iter().collect();
+            assert_eq!(kept.len(), 4, "damage at {damage}");
+            assert_eq!(*kept[0], whole.records[0]);
+            assert_eq!(
+                kept[1..].to_vec(),
+                whole.records[2..].iter().collect::<Vec<_>>()
+            );
+            assert_eq!(contents.skipped.len(), 1, "damage at {damage}");
+            assert_eq!(contents.skipped[0].offset as usize, second);
+            assert_eq!(contents.skipped[0].len as usize, third - second);
+            assert!(contents.partial_tail.is_none());
         }
     }
 

@@ -292,11 +292,24 @@ fn bad_logs_are_one_sentence_and_exit_2() {
     let out = lssi(&["log", corrupt.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.contains("is corrupt"), "{stderr}");
-    assert_eq!(stderr.lines().count(), 1);
-    assert!(
-        String::from_utf8(out.stdout)
-            .unwrap()
-            .starts_with("session 1")
+    assert!(stderr.contains("damaged bytes at byte"), "{stderr}");
+    assert!(stderr.contains("the log is damaged"), "{stderr}");
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.starts_with("session 1"));
+    // Resynchronised: the records after the damaged one are printed too (one record lost).
+    let intact = lssi(&["log", path.to_str().unwrap(), "--json"]);
+    let damaged = lssi(&["log", corrupt.to_str().unwrap(), "--json"]);
+    let lines = |o: &std::process::Output| String::from_utf8_lossy(&o.stdout).lines().count();
+    assert_eq!(
+        lines(&damaged) + 1,
+        lines(&intact),
+        "one record lost, the rest kept"
     );
+    let last = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .last()
+            .map(str::to_owned)
+    };
+    assert_eq!(last(&damaged), last(&intact));
 }

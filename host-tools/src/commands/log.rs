@@ -22,7 +22,7 @@ use crate::error::CliError;
 use crate::identify;
 use crate::link::nak_text;
 use crate::replay::report_from_snapshot;
-use crate::telemetry::{LogError, Record, RecordKind, read_log};
+use crate::telemetry::{Record, RecordKind, read_log};
 
 /// Arguments of `lssi log`.
 #[derive(Debug, Clone, Args)]
@@ -430,16 +430,8 @@ pub fn run(args: &LogArgs) -> Result<(), CliError> {
         .map(Tables::load)
         .transpose()
         .map_err(|e| CliError::Input(format!("{e}.")))?;
-    let (records, partial, corrupt) = match read_log(&bytes) {
-        Ok(contents) => (contents.records, contents.partial_tail, None),
-        Err(LogError::Corrupt {
-            offset,
-            reason,
-            records,
-        }) => {
-            let n = records.len();
-            (records, None, Some((offset, reason, n)))
-        }
+    let (records, partial, skipped) = match read_log(&bytes) {
+        Ok(contents) => (contents.records, contents.partial_tail, contents.skipped),
         Err(error) => return Err(CliError::Input(format!("{file}: {error}."))),
     };
     let entries = decode(&records, tables.as_ref());
@@ -477,9 +469,18 @@ pub fn run(args: &LogArgs) -> Result<(), CliError> {
             tail.len, tail.offset
         );
     }
-    if let Some((offset, reason, n)) = corrupt {
+    for s in &skipped {
+        eprintln!(
+            "lssi: {file}: {} damaged bytes at byte {} were skipped (the record there: {}); reading went on at the next whole record.",
+            s.len, s.offset, s.reason
+        );
+    }
+    if !skipped.is_empty() {
+        let bytes: u64 = skipped.iter().map(|s| s.len).sum();
         return Err(CliError::Input(format!(
-            "{file}: the record at byte {offset} is corrupt ({reason}), so only the {n} records before it were printed."
+            "{file}: the log is damaged: {} stretch(es), {bytes} bytes, were skipped; the {} intact records were printed.",
+            skipped.len(),
+            records.len()
         )));
     }
     Ok(())
