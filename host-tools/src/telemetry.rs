@@ -313,6 +313,16 @@ impl TelemetryLog {
     /// cut off and a note says so, so that the new records stay readable after it.
     pub fn open(path: impl AsRef<Path>) -> io::Result<Self> {
         let path = path.as_ref().to_path_buf();
+        // A device, a FIFO or a directory is no log to append to (reading /dev/zero to find
+        // the end would never end).
+        if let Ok(meta) = std::fs::metadata(&path)
+            && !meta.is_file()
+        {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "it exists and is not a regular file",
+            ));
+        }
         let mut file = OpenOptions::new()
             .read(true)
             .append(true)

@@ -79,3 +79,28 @@ fn omega_above_nyquist_is_refused() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// `--log` naming something that is not a regular file (a device, a directory) is refused
+/// before anything starts: exit 2 and one sentence (was: `--log /dev/zero` spun forever).
+#[test]
+fn a_log_that_is_not_a_regular_file_is_refused() {
+    let dir = std::env::temp_dir();
+    for log in ["/dev/zero", dir.to_str().unwrap()] {
+        if !std::path::Path::new(log).exists() {
+            continue;
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_lssi"))
+            .args([
+                "replay",
+                &repository_file("data/paper-eq17.csv"),
+                "--log",
+                log,
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{log}: {stderr}");
+        assert!(stderr.contains("not a regular file"), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    }
+}

@@ -119,9 +119,11 @@ pub fn monitor(args: &MonitorArgs, out: &mut dyn Write) -> Result<Option<Value>,
         .log
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("lssi-monitor-{}.tlm", now_us() / 1_000_000)));
-    let mut log = TelemetryLog::open(&log_path).map_err(|e| CliError::Write {
-        path: log_path.clone(),
-        source: e,
+    let mut log = TelemetryLog::open(&log_path).map_err(|e| {
+        CliError::Input(format!(
+            "{}: cannot open the telemetry log: {e}.",
+            log_path.display()
+        ))
     })?;
     match (&args.qemu, &args.port) {
         (Some(file), _) => monitor_qemu(args, file, &mut log, out).map(Some),
