@@ -127,6 +127,9 @@ impl Recording {
     }
 }
 
+/// The longest line a recording may have, in bytes (1 MiB).
+pub const MAX_LINE: usize = 1 << 20;
+
 /// Why a recording file cannot be used. Every message is one sentence that starts with the
 /// file name.
 #[derive(Debug)]
@@ -143,6 +146,13 @@ pub enum RecordingError {
     Empty {
         /// The file.
         path: PathBuf,
+    },
+    /// A line is longer than [`MAX_LINE`] bytes (not a recording: e.g. /dev/zero, a binary).
+    LineTooLong {
+        /// The file.
+        path: PathBuf,
+        /// The line, counted from 1.
+        line: usize,
     },
     /// A required column is not in the header.
     MissingColumn {
@@ -217,6 +227,7 @@ impl RecordingError {
         match self {
             RecordingError::Io { path, .. }
             | RecordingError::Empty { path }
+            | RecordingError::LineTooLong { path, .. }
             | RecordingError::MissingColumn { path, .. }
             | RecordingError::DuplicateColumn { path, .. }
             | RecordingError::NoData { path }
@@ -262,6 +273,11 @@ impl fmt::Display for RecordingError {
             RecordingError::Io { source, .. } => {
                 write!(f, "{file}: cannot read the file: {source}.")
             }
+            RecordingError::LineTooLong { line, .. } => write!(
+                f,
+                "{file}: line {line} is longer than {} bytes, so the file is not a CSV recording.",
+                MAX_LINE
+            ),
             RecordingError::Empty { .. } => write!(
                 f,
                 "{file}: the file is empty; a recording needs a header row such as 't,x,v' \
@@ -413,8 +429,29 @@ pub fn parse_csv(
     // The whole text stays at hand so an error can name its true line (see `line_at`); the
     // parsed columns are about as large anyway.
     let mut bytes = Vec::new();
-    if let Err(source) = reader.read_to_end(&mut bytes) {
-        return Err(RecordingError::Io { path, source });
+    // Read in chunks, so that a line without end (/dev/zero, a binary file) is refused after
+    // MAX_LINE bytes instead of filling the memory.
+    let mut chunk = vec![0u8; 1 << 16];
+    let (mut lines, mut since_newline) = (1usize, 0usize);
+    loop {
+        let n = match reader.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(source) => return Err(RecordingError::Io { path, source }),
+        };
+        for &b in &chunk[..n] {
+            if b == b'\n' {
+                lines += 1;
+                since_newline = 0;
+            } else {
+                since_newline += 1;
+                if since_newline > MAX_LINE {
+                    return Err(RecordingError::LineTooLong { path, line: lines });
+                }
+            }
+        }
+        bytes.extend_from_slice(&chunk[..n]);
     }
     let mut csv = csv::ReaderBuilder::new()
         .has_headers(true)

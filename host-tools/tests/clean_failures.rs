@@ -104,3 +104,45 @@ fn a_log_that_is_not_a_regular_file_is_refused() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
     }
 }
+
+/// A line longer than 1 MiB is an error naming the file and the line; `lssi info /dev/zero`
+/// ends at once (was: it grew without bound).
+#[test]
+fn an_endless_line_is_refused_promptly() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = dir.path().join("long.csv");
+    let mut text = String::from("t,x\n0,1\n");
+    text.push_str(&"9".repeat((1 << 20) + 10));
+    text.push_str("\n");
+    std::fs::write(&long, text).unwrap();
+    let mut files = vec![long.to_str().unwrap().to_owned()];
+    if std::path::Path::new("/dev/zero").exists() {
+        files.push("/dev/zero".into());
+    }
+    for file in files {
+        let started = std::time::Instant::now();
+        let out = Command::new(env!("CARGO_BIN_EXE_lssi"))
+            .args(["info", &file])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{file}: {stderr}");
+        assert!(stderr.contains("is longer than 1048576 bytes"), "{stderr}");
+        assert!(
+            started.elapsed().as_secs() < 10,
+            "{file} took {:?}",
+            started.elapsed()
+        );
+        assert!(stderr.len() < 300, "{stderr}");
+    }
+    assert!(
+        String::from_utf8_lossy(
+            &Command::new(env!("CARGO_BIN_EXE_lssi"))
+                .args(["info", long.to_str().unwrap()])
+                .output()
+                .unwrap()
+                .stderr
+        )
+        .contains("line 3")
+    );
+}
