@@ -113,7 +113,7 @@ fn an_endless_line_is_refused_promptly() {
     let long = dir.path().join("long.csv");
     let mut text = String::from("t,x\n0,1\n");
     text.push_str(&"9".repeat((1 << 20) + 10));
-    text.push_str("\n");
+    text.push('\n');
     std::fs::write(&long, text).unwrap();
     let mut files = vec![long.to_str().unwrap().to_owned()];
     if std::path::Path::new("/dev/zero").exists() {
