@@ -23,7 +23,7 @@
 //! a software interrupt).
 
 use crate::{Transport, wire};
-use core::cell::Cell;
+use core::cell::{Cell, RefCell};
 use core::sync::atomic::{AtomicU32, Ordering};
 use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -433,6 +433,51 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
     }
 }
 
+/// Where a board keeps the identify task's two resources between its runs: the engine and
+/// the queue's consumer, each moved out for the run and back after it (critical sections of
+/// a few instructions; the run itself is not in one).
+pub struct IdentifyTask<const W: usize, const P: usize, const C: usize> {
+    engine: Mutex<Cell<Option<&'static mut Engine<W, P, C>>>>,
+    events: Mutex<RefCell<Option<Consumer<'static, Event>>>>,
+}
+
+impl<const W: usize, const P: usize, const C: usize> Default for IdentifyTask<W, P, C> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const W: usize, const P: usize, const C: usize> IdentifyTask<W, P, C> {
+    /// Empty (in a `static`).
+    pub const fn new() -> Self {
+        Self {
+            engine: Mutex::new(Cell::new(None)),
+            events: Mutex::new(RefCell::new(None)),
+        }
+    }
+
+    /// Hands over the engine and the consumer end of the sample queue (at start-up).
+    pub fn give(&self, engine: &'static mut Engine<W, P, C>, events: Consumer<'static, Event>) {
+        critical_section::with(|cs| {
+            self.engine.borrow(cs).set(Some(engine));
+            self.events.borrow(cs).replace(Some(events));
+        });
+    }
+
+    /// The identify interrupt's body: [`Engine::run`] on what the queue holds.
+    pub fn run<K: Clock>(&self, shared: &Shared<P>, clock: &K) {
+        let engine = critical_section::with(|cs| self.engine.borrow(cs).take());
+        let events = critical_section::with(|cs| self.events.borrow(cs).take());
+        if let (Some(engine), Some(mut events)) = (engine, events) {
+            engine.run(&mut events, shared, clock);
+            critical_section::with(|cs| {
+                self.engine.borrow(cs).set(Some(engine));
+                self.events.borrow(cs).replace(Some(events));
+            });
+        }
+    }
+}
+
 /// Thread mode's part: screens the snapshot, keeps the latest model, sends Model and
 /// Health frames every period and answers the host's commands.
 pub struct Reporter<const W: usize, const P: usize, const C: usize> {
@@ -488,22 +533,50 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         self.finished
     }
 
-    /// One pass of thread mode: screens a waiting snapshot (sending its model at once),
+    /// One pass of thread mode on a board: the bytes the UART's receive ring holds (up to
+    /// 64) go to [`Reporter::receive`], then [`Reporter::poll`]. Returns whether thread mode
+    /// may sleep (nothing was received); the board then checks, with interrupts off, that
+    /// no snapshot waits ([`Shared::screening_waiting`]) and the ring is still empty
+    /// before its `wfi`.
+    pub fn pass<L: Transport, K: Clock>(
+        &mut self,
+        rx: &mut Consumer<'_, u8>,
+        shared: &Shared<P>,
+        link: &mut L,
+        clock: &K,
+        screened: impl FnOnce(),
+    ) -> Result<bool, L::Error> {
+        let mut chunk = [0u8; 64];
+        let mut n = 0;
+        while n < chunk.len()
+            && let Some(b) = rx.dequeue()
+        {
+            if let Some(slot) = chunk.get_mut(n) {
+                *slot = b;
+            }
+            n += 1;
+        }
+        self.receive::<L, K>(chunk.get(..n).unwrap_or(&[]), shared, link)?;
+        self.poll(shared, link, clock, screened)?;
+        Ok(n == 0)
+    }
+
+    /// Screens a waiting snapshot (sending its model at once; its cost in `clock` ticks),
     /// then sends Model and Health if a period has passed. `screened` is called after a
     /// screening gave its snapshot back (the board pends the identify task, which may
-    /// be waiting to take the final one). `cost` measures the screening.
+    /// be waiting to take the final one).
     pub fn poll<L: Transport, K: Clock>(
         &mut self,
         shared: &Shared<P>,
         link: &mut L,
         clock: &K,
-        mut cost: impl FnMut(&mut dyn FnMut()) -> u32,
         screened: impl FnOnce(),
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
         if let Some((snapshot, cause)) = shared.take_full() {
-            let mut made = false;
-            let spent = cost(&mut || made = snapshot.select());
+            let start = clock.now();
+            let made = snapshot.select();
+            let spent = clock.now().wrapping_sub(start);
             self.screen_cost = spent;
             self.screen_cost_max = self.screen_cost_max.max(spent);
             if made && let Some(model) = snapshot.model() {

@@ -3,7 +3,9 @@
 
 use lssi_core::{Config, Identifier, Sample, Snapshot};
 use lssi_device::Transport;
-use lssi_device::standalone::{Clock, Engine, EventQueue, Reading, Reporter, Sampler, Shared};
+use lssi_device::standalone::{
+    Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
+};
 use lssi_proto::{DeviceFrameDecoder, DeviceMsg, HostMsg, SnapshotCause, encode};
 use std::cell::Cell;
 
@@ -69,10 +71,13 @@ fn run(
     let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
     shared.give_snapshot(Box::leak(Box::new(Snapshot::empty())));
     let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
-    let (producer, mut consumer) = queue.split();
+    let (producer, consumer) = queue.split();
     let mut sampler = Sampler::new(producer);
-    let mut engine: Box<Engine<W, P, C>> = Box::new(Engine::new());
+    let engine: &'static mut Engine<W, P, C> = Box::leak(Box::new(Engine::new()));
     engine.configure(config()).expect("valid");
+    // As a board keeps them: the identify interrupt takes both out for each run.
+    let identify: &'static IdentifyTask<W, P, C> = Box::leak(Box::new(IdentifyTask::new()));
+    identify.give(engine, consumer);
     let mut reporter: Reporter<W, P, C> = Reporter::new(config(), 100.0, 100_000_000);
     let clock = FakeClock(Cell::new(0));
     let mut wire = Wire::default();
@@ -88,34 +93,16 @@ fn run(
             &shared.counters,
         );
         if i % burst == burst - 1 {
-            engine.run(&mut consumer, shared, &clock);
+            identify.run(shared, &clock);
         }
         if i % screen_every == screen_every - 1 {
-            let Ok(()) = reporter.poll(
-                shared,
-                &mut wire,
-                &clock,
-                |f| {
-                    f();
-                    0
-                },
-                || {},
-            );
+            let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
         }
     }
     assert!(sampler.end());
     for _ in 0..4 {
-        engine.run(&mut consumer, shared, &clock);
-        let Ok(()) = reporter.poll(
-            shared,
-            &mut wire,
-            &clock,
-            |f| {
-                f();
-                0
-            },
-            || {},
-        );
+        identify.run(shared, &clock);
+        let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
     }
     assert!(reporter.finished());
     (decode(&wire.0), shared)

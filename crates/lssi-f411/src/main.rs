@@ -19,7 +19,7 @@
 #![no_main]
 #![deny(unsafe_code)]
 
-use core::cell::{Cell, RefCell};
+use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::peripheral::{DWT, NVIC};
@@ -30,7 +30,7 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Snapshot};
 use lssi_device::Transport;
 use lssi_device::standalone::{
-    Clock, Engine, Event, EventQueue, Reading, Reporter, Sampler, Shared,
+    Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use panic_probe as _;
 use stm32f4xx_hal::{
@@ -61,8 +61,7 @@ type Id = Engine<W, P, C>;
 
 static SHARED: Shared<P> = Shared::new();
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: Mutex<Cell<Option<&'static mut Id>>> = Mutex::new(Cell::new(None));
-static EVENTS: Mutex<RefCell<Option<Consumer<'static, Event>>>> = Mutex::new(RefCell::new(None));
+static IDENTIFY: IdentifyTask<W, P, C> = IdentifyTask::new();
 static UART: Mutex<RefCell<Option<Uart>>> = Mutex::new(RefCell::new(None));
 /// Received bytes lost (ring full).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
@@ -131,6 +130,7 @@ fn main() -> ! {
     }
     SHARED.give_snapshot(snapshot);
     let (producer, consumer) = queue.split();
+    IDENTIFY.give(engine, consumer);
     let (rx_in, mut rx_out) = rx_ring.split();
     let (tx_in, tx_out) = tx_ring.split();
 
@@ -158,8 +158,6 @@ fn main() -> ! {
             pin,
             sampler: Sampler::new(producer),
         });
-        IDENTIFY.borrow(cs).set(Some(engine));
-        EVENTS.borrow_ref_mut(cs).replace(consumer);
         UART.borrow_ref_mut(cs).replace(Uart {
             tx,
             rx,
@@ -187,31 +185,11 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::EXTI1);
     }
 
-    let mut chunk = [0u8; 64];
     loop {
-        let mut n = 0;
-        while n < chunk.len() {
-            match rx_out.dequeue() {
-                Some(b) => {
-                    chunk[n] = b;
-                    n += 1;
-                }
-                None => break,
-            }
-        }
-        let Ok(()) = reporter.receive::<_, BoardClock>(&chunk[..n], &SHARED, &mut link);
-        let Ok(()) = reporter.poll(
-            &SHARED,
-            &mut link,
-            &BoardClock,
-            |f| {
-                let t0 = BoardClock.now();
-                f();
-                BoardClock.now().wrapping_sub(t0)
-            },
-            || NVIC::pend(Interrupt::EXTI1),
-        );
-        if n == 0 {
+        let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
+            NVIC::pend(Interrupt::EXTI1)
+        });
+        if idle {
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
                     cortex_m::asm::wfi();
@@ -272,15 +250,7 @@ fn TIM2() {
 
 #[interrupt]
 fn EXTI1() {
-    let engine = critical_section::with(|cs| IDENTIFY.borrow(cs).take());
-    let events = critical_section::with(|cs| EVENTS.borrow_ref_mut(cs).take());
-    if let (Some(engine), Some(mut events)) = (engine, events) {
-        engine.run(&mut events, &SHARED, &BoardClock);
-        critical_section::with(|cs| {
-            IDENTIFY.borrow(cs).set(Some(engine));
-            EVENTS.borrow_ref_mut(cs).replace(events);
-        });
-    }
+    IDENTIFY.run(&SHARED, &BoardClock);
 }
 
 #[interrupt]

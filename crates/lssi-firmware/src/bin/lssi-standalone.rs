@@ -19,14 +19,14 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
-use core::cell::{Cell, RefCell};
+use core::cell::RefCell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Snapshot};
-use lssi_device::standalone::{Clock, Engine, Event, EventQueue, Reporter, Sampler, Shared};
+use lssi_device::standalone::{Clock, Engine, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
 use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Transport, wire};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
@@ -59,8 +59,7 @@ struct Sensor {
 }
 
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: Mutex<Cell<Option<&'static mut Id>>> = Mutex::new(Cell::new(None));
-static EVENTS: Mutex<RefCell<Option<Consumer<'static, Event>>>> = Mutex::new(RefCell::new(None));
+static IDENTIFY: IdentifyTask<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS> = IdentifyTask::new();
 static RX_IN: Mutex<RefCell<Option<Producer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 /// The TX interrupt found the ring empty: the next write must start it again.
@@ -136,6 +135,7 @@ fn main() -> ! {
     }
     SHARED.give_snapshot(snapshot);
     let (producer, consumer) = queue.split();
+    IDENTIFY.give(engine, consumer);
     let (rx_in, mut rx_out) = rx.split();
     let (tx_in, tx_out) = tx.split();
     critical_section::with(|cs| {
@@ -144,8 +144,6 @@ fn main() -> ! {
             recording,
             next: 0,
         });
-        IDENTIFY.borrow(cs).set(Some(engine));
-        EVENTS.borrow_ref_mut(cs).replace(consumer);
         RX_IN.borrow_ref_mut(cs).replace(rx_in);
         TX_OUT.borrow_ref_mut(cs).replace(tx_out);
     });
@@ -177,34 +175,14 @@ fn main() -> ! {
     mps2::uart_interrupts_on();
     mps2::start_sampling(mps2::sampling_reload(rate));
 
-    let mut chunk = [0u8; 64];
     loop {
-        let mut n = 0;
-        while n < chunk.len() {
-            match rx_out.dequeue() {
-                Some(b) => {
-                    chunk[n] = b;
-                    n += 1;
-                }
-                None => break,
-            }
-        }
-        let Ok(()) = reporter.receive::<_, BoardClock>(&chunk[..n], &SHARED, &mut link);
-        let Ok(()) = reporter.poll(
-            &SHARED,
-            &mut link,
-            &BoardClock,
-            |f| {
-                let t0 = BoardClock.now();
-                f();
-                BoardClock.now().wrapping_sub(t0)
-            },
-            || NVIC::pend(Irq::Identify),
-        );
+        let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
+            NVIC::pend(Irq::Identify)
+        });
         if reporter.finished() {
             finish(&reporter)
         }
-        if n == 0 {
+        if idle {
             // Sleeps only if nothing waits; checked with interrupts off so that an
             // interrupt in between still wakes the `wfi` (it is taken right after).
             cortex_m::interrupt::free(|_| {
@@ -285,15 +263,7 @@ fn on_timer() {
 }
 
 fn on_identify() {
-    let engine = critical_section::with(|cs| IDENTIFY.borrow(cs).take());
-    let events = critical_section::with(|cs| EVENTS.borrow_ref_mut(cs).take());
-    if let (Some(engine), Some(mut events)) = (engine, events) {
-        engine.run(&mut events, &SHARED, &BoardClock);
-        critical_section::with(|cs| {
-            IDENTIFY.borrow(cs).set(Some(engine));
-            EVENTS.borrow_ref_mut(cs).replace(events);
-        });
-    }
+    IDENTIFY.run(&SHARED, &BoardClock);
 }
 
 fn on_uart_rx() {
