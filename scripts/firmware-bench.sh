@@ -212,3 +212,31 @@ row "instructions/sample, mean (screening spread over it)" "$weak_all" "<= 5000 
 row "  mean without the screening" "$weak_steady" "" ""
 row "instructions/sample, worst outside screening" "$weak_steady_max" "" ""
 row "screening (threshold sweep + MES), mean / worst" "$weak_screen_mean / $weak_screen_max" "stated" ""
+
+# Energy: what a sample costs a part that runs the identifier and sleeps (WFI) in between.
+# Active energy per sample = V x (run current per MHz) x instructions, taking one cycle per
+# instruction (a floor: loads, branches and VDIV/VSQRT take more). Run currents are the
+# datasheets' headline figures (3.3 V, code from flash, peripherals off): STM32F411 100 uA/MHz,
+# STM32L432 84 uA/MHz (LDO). The Sleep-mode current between samples comes on top and depends
+# on the clock tree kept running for the timer and ADC (see the part's Sleep-mode table).
+echo
+echo "Energy per sample, core active for the measured mean instructions, 3.3 V, 1 cycle/instruction"
+echo
+printf '| %-40s | %-12s | %10s | %10s | %10s |\n' "configuration" "part" "uJ/sample" "mW @ 1 kHz" "mW @ 10 kHz"
+printf '|%s|%s|%s|%s|%s|\n' "$(printf -- '-%.0s' {1..42})" "$(printf -- '-%.0s' {1..14})" \
+    "$(printf -- '-%.0s' {1..12})" "$(printf -- '-%.0s' {1..12})" "$(printf -- '-%.0s' {1..13})"
+energy() { # energy LABEL INSTRUCTIONS
+    for part in "STM32F411 100" "STM32L432 84"; do
+        set -- "$1" "$2" $part
+        awk -v label="$1" -v n="$2" -v name="$3" -v k="$4" 'BEGIN {
+            uj = 3.3 * k * n * 1e-6
+            printf "| %-40s | %-12s | %10.3f | %10.3f | %11.2f |\n", label, name, uj, uj, 10 * uj  # uJ x 1000 /s = mW
+        }'
+    done
+}
+energy "default (eq. 18 library, a row every 4)" "$all_mean"
+energy "as lssi identify configures (weak form)" "$weak_all"
+echo
+echo "Harvesters make 0.1-10 mW: at 10 kHz the identifier alone spends more than most of them;"
+echo "at 1 kHz (harvesters ring at 3-50 Hz) about a tenth. See docs/figures.md for the lowest rate"
+echo "that still identifies data/eveh-bistable.csv within 1 %."
