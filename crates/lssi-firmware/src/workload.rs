@@ -1,6 +1,6 @@
-//! A stand-in for the identifier's inner step until `lssi-device` exists: one update of a
+//! A benchmark workload (the `bench` image): one update of a
 //! 16-term square-root-information least-squares factor by Givens rotations (the RLS form
-//! DESIGN.md prescribes), f32, fixed memory.
+//! docs/design.md prescribes), f32, fixed memory.
 //!
 //! Each update scales the triangular factor R and the vector z by √λ, then rotates the new
 //! row [θ | y] into them, one Givens rotation per column: about 16·17/2 rotated pairs and
