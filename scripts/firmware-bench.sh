@@ -237,6 +237,5 @@ energy() { # energy LABEL INSTRUCTIONS
 energy "default (eq. 18 library, a row every 4)" "$all_mean"
 energy "as lssi identify configures (weak form)" "$weak_all"
 echo
-echo "Harvesters make 0.1-10 mW: at 10 kHz the identifier alone spends more than most of them;"
-echo "at 1 kHz (harvesters ring at 3-50 Hz) about a tenth. See docs/figures.md for the lowest rate"
-echo "that still identifies data/eveh-bistable.csv within 1 %."
+echo "Harvesters make 0.1-10 mW; the power is proportional to the rate (harvesters ring at 3-50 Hz)."
+echo "scripts/lowest-rate.sh: the lowest rate that still identifies data/eveh-bistable.csv within 1 %."

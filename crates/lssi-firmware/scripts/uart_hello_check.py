@@ -12,14 +12,27 @@ expected reply, 1 otherwise. The full protocol is exercised by tests/tests/qemu.
 """
 
 import os
+import re
 import socket
 import sys
 import time
 
-PROTOCOL_VERSION = 3
-# HostMsg::Hello (variant 0) { protocol_version: varint 3 }
+
+def protocol_version() -> int:
+    """lssi-proto's PROTOCOL_VERSION, read from its source (one place to bump it)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    source = os.path.join(here, "..", "..", "lssi-proto", "src", "lib.rs")
+    with open(source, encoding="utf-8") as f:
+        found = re.search(r"pub const PROTOCOL_VERSION: u16 = (\d+);", f.read())
+    if found is None or int(found.group(1)) > 127:
+        sys.exit(f"hello: no one-byte PROTOCOL_VERSION in {source}")
+    return int(found.group(1))
+
+
+PROTOCOL_VERSION = protocol_version()
+# HostMsg::Hello (variant 0) { protocol_version: varint }
 HELLO = bytes([0x00, PROTOCOL_VERSION])
-# DeviceMsg::HelloReply (variant 0) { version 3, max_terms 16, window_capacity 256
+# DeviceMsg::HelloReply (variant 0) { version, max_terms 16, window_capacity 256
 # (varint 0x80 0x02), max_batch 24 }
 HELLO_REPLY = bytes([0x00, PROTOCOL_VERSION, 16, 0x80, 0x02, 24])
 
