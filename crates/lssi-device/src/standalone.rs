@@ -30,7 +30,7 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Identifier, IdentifierSlot, Sample, Snapshot};
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
-    ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, encode,
+    ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, encode,
 };
 
 /// Slots of the sample queue: it holds `QUEUE_SLOTS − 1` = 64 events.
@@ -498,6 +498,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize> {
     /// Frames sent.
     pub frames_sent: u32,
     finished: bool,
+    /// A host's configuration, accepted and not yet taken by the board to keep.
+    to_keep: Option<WireConfig>,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
@@ -520,7 +522,14 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             screen_cost_max: 0,
             frames_sent: 0,
             finished: false,
+            to_keep: None,
         }
+    }
+
+    /// The configuration a host sent and this device accepted since the last call, for a
+    /// board that keeps it across resets (in flash) and starts from it at power-up.
+    pub fn take_accepted(&mut self) -> Option<WireConfig> {
+        self.to_keep.take()
     }
 
     /// The latest model, once a screening made one.
@@ -644,6 +653,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                     Ok(()) => {
                         shared.request_config(config);
                         self.config = Some(config);
+                        self.to_keep = Some(wire_config);
                         self.rate_hz = (1.0 / config.sample_period) as f32;
                         self.latest = None;
                         self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })

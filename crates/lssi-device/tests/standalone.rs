@@ -232,4 +232,29 @@ fn a_host_can_connect_mid_run() {
         }
     ));
     assert_eq!(frames.len(), 3);
+    // The refused configuration is not one to keep.
+    assert_eq!(reporter.take_accepted(), None);
+}
+
+#[test]
+fn an_accepted_configuration_is_handed_over_once_to_keep() {
+    let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config(), 100.0, 0);
+    let mut wire = Wire::default();
+    let sent = lssi_device::wire::config_to_wire(&Config {
+        window: 41,
+        ..config()
+    })
+    .expect("encodable");
+    let mut frame = [0u8; 512];
+    let len = encode(&HostMsg::Configure(sent), &mut frame).expect("fits");
+    let Ok(()) = reporter.receive::<_, FakeClock>(&frame[..len], shared, &mut wire);
+    assert!(matches!(
+        decode(&wire.0)[..],
+        [DeviceMsg::Ack {
+            seq: lssi_proto::CONTROL_SEQ
+        }]
+    ));
+    assert_eq!(reporter.take_accepted(), Some(sent));
+    assert_eq!(reporter.take_accepted(), None);
 }

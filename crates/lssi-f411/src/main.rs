@@ -14,6 +14,9 @@
 //! | USART1 | 0x40 | RX bytes into a ring; TX ring out on TXE |
 //! | EXTI1 (pended) | 0x80 | queue → identifier rows; the snapshot at a screening point |
 //! | thread mode | lowest | screening on the snapshot, frames, host commands, `wfi` |
+//!
+//! At power-up it starts from the configuration a host last sent (kept in flash sector 7,
+//! [`store`]), or else from the image's own.
 
 #![no_std]
 #![no_main]
@@ -33,6 +36,7 @@ use lssi_device::standalone::{
     Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use panic_probe as _;
+use stm32f4xx_hal::flash::LockedFlash;
 use stm32f4xx_hal::{
     adc::{
         Adc,
@@ -44,6 +48,8 @@ use stm32f4xx_hal::{
     serial::{Rx, Tx},
     timer::{CounterHz, Event as TimerEvent},
 };
+
+mod store;
 
 /// Window capacity, library capacity, channels (x only: one ADC channel).
 const W: usize = 256;
@@ -121,12 +127,26 @@ fn main() -> ! {
     else {
         defmt::panic!("start-up ran twice")
     };
-    let config = default_config();
+    let mut flash = LockedFlash::new(dp.FLASH);
+    let mut config = match store::load(&flash) {
+        Ok(stored) => stored,
+        Err(why) => {
+            defmt::info!("no stored configuration ({}): the image's", why);
+            default_config()
+        }
+    };
     if let Err(e) = engine.configure(config) {
-        defmt::panic!(
-            "the image's configuration is refused: {}",
+        defmt::warn!(
+            "the stored configuration is refused ({}): the image's",
             defmt::Debug2Format(&e)
         );
+        config = default_config();
+        if let Err(e) = engine.configure(config) {
+            defmt::panic!(
+                "the image's configuration is refused: {}",
+                defmt::Debug2Format(&e)
+            );
+        }
     }
     SHARED.give_snapshot(snapshot);
     let (producer, consumer) = queue.split();
@@ -189,6 +209,9 @@ fn main() -> ! {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
             NVIC::pend(Interrupt::EXTI1)
         });
+        if let Some(accepted) = reporter.take_accepted() {
+            keep(&mut flash, &accepted);
+        }
         if idle {
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
@@ -196,6 +219,30 @@ fn main() -> ! {
                 }
             });
         }
+    }
+}
+
+/// Keeps a host's configuration in flash. The erase stalls every interrupt for about a
+/// second: the samples TIM2 could not take meanwhile are counted as overruns (the
+/// identifier restarts with this configuration anyway).
+fn keep(flash: &mut LockedFlash, config: &lssi_proto::WireConfig) {
+    let start = BoardClock.now();
+    let result = store::save(flash, config);
+    let stalled = u64::from(BoardClock.now().wrapping_sub(start));
+    let missed = stalled * u64::from(RATE_HZ) / u64::from(CORE_HZ);
+    SHARED
+        .counters
+        .overruns
+        .fetch_add(u32::try_from(missed).unwrap_or(u32::MAX), Ordering::Relaxed);
+    match result {
+        Ok(()) => defmt::info!(
+            "configuration kept in flash ({=u64} samples missed)",
+            missed
+        ),
+        Err(e) => defmt::warn!(
+            "the configuration could not be kept: {}",
+            defmt::Debug2Format(&e)
+        ),
     }
 }
 
