@@ -87,6 +87,9 @@ pub struct Counters {
     pub consumed: AtomicU32,
     /// Scheduled screenings left out (the snapshot was still being screened).
     pub screenings_skipped: AtomicU32,
+    /// Readings passed on as NaN because the sensor was stuck ([`STUCK_RUN`]); the
+    /// identifier counts them among its rejected samples too.
+    pub stuck: AtomicU32,
 }
 
 /// What the contexts hand each other: the counters, the snapshot's two mailboxes and a
@@ -139,6 +142,7 @@ impl<const P: usize> Shared<P> {
                 latency_max: AtomicU32::new(0),
                 consumed: AtomicU32::new(0),
                 screenings_skipped: AtomicU32::new(0),
+                stuck: AtomicU32::new(0),
             },
             free: Mutex::new(Cell::new(None)),
             full: Mutex::new(Cell::new(None)),
@@ -197,11 +201,21 @@ impl<const P: usize> Default for Shared<P> {
     }
 }
 
+/// Identical readings in a row after which the sensor counts as stuck: the readings that
+/// follow, while they stay identical, are passed on as NaN (rejected and skipped like a
+/// gap, so a stuck sensor cannot teach the identifier a flat line). 256 samples: 25.6 ms at
+/// 10 kHz; a 12-bit ADC on a 1 Hz harvester at full scale holds one code for about 5 ms at
+/// a turning point, and sensor noise moves the last bit far more often.
+pub const STUCK_RUN: u32 = 256;
+
 /// The sampling interrupt's part: queues each reading with its index and stamp.
 pub struct Sampler<'q> {
     producer: Producer<'q, Event>,
     next: u64,
     ended: bool,
+    /// The last displacement reading's bits and how many times in a row it came.
+    last_x: u32,
+    run: u32,
 }
 
 impl<'q> Sampler<'q> {
@@ -211,14 +225,29 @@ impl<'q> Sampler<'q> {
             producer,
             next: 0,
             ended: false,
+            last_x: 0,
+            run: 0,
         }
     }
 
     /// One timer interrupt's sample. A full queue loses it, counted in `overruns`: its
-    /// index is used all the same, so the next sample's time stays the timer's.
-    pub fn tick(&mut self, stamp: u32, reading: Reading, counters: &Counters) {
+    /// index is used all the same, so the next sample's time stays the timer's. A reading
+    /// that repeats the last one more than [`STUCK_RUN`] times goes on as NaN (counted in
+    /// `stuck`).
+    pub fn tick(&mut self, stamp: u32, mut reading: Reading, counters: &Counters) {
         let index = self.next;
         self.next += 1;
+        let bits = reading.x.to_bits();
+        if bits == self.last_x {
+            self.run = self.run.saturating_add(1);
+        } else {
+            self.last_x = bits;
+            self.run = 1;
+        }
+        if self.run > STUCK_RUN {
+            reading.x = f32::NAN;
+            counters.stuck.fetch_add(1, Ordering::Relaxed);
+        }
         let event = Event::Sample {
             index,
             stamp,

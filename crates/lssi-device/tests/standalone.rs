@@ -189,6 +189,27 @@ fn bad_readings_are_counted_and_skipped() {
     assert_eq!(status.samples, 3000 - 12);
 }
 
+/// A stuck sensor (one reading repeated) is passed through for STUCK_RUN samples, then
+/// counted and skipped until it moves again; sampling goes on.
+#[test]
+fn a_stuck_sensor_is_counted_and_skipped() {
+    let stuck = 1000..1600;
+    let (_, shared) = run(3000, 16, 16, |i| {
+        if stuck.contains(&i) { 0.25 } else { signal(i) }
+    });
+    let skipped = 600 - lssi_device::standalone::STUCK_RUN;
+    let status = shared.status();
+    assert_eq!(
+        shared
+            .counters
+            .stuck
+            .load(std::sync::atomic::Ordering::Relaxed),
+        skipped
+    );
+    assert_eq!(status.rejected, u64::from(skipped));
+    assert_eq!(status.samples, 3000 - u64::from(skipped));
+}
+
 /// Commands from a host mid-run: Hello, Query (model + health), a refused Configure, and
 /// a host's sample batch (Busy: this device samples itself); garbage is counted.
 #[test]
