@@ -20,8 +20,10 @@ use std::fmt;
 use std::io;
 use std::path::PathBuf;
 
-use crate::generators::OptionError;
+use crate::identify::IdentifyError;
 use crate::recording::RecordingError;
+use crate::serial::replay::ReplayError;
+use crate::synth::OptionError;
 
 /// Exit code for unusable input: a bad recording or a bad flag value.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -136,6 +138,21 @@ impl std::error::Error for CliError {
             | CliError::Identify(_)
             | CliError::Input(_)
             | CliError::Device(_) => None,
+        }
+    }
+}
+
+impl From<IdentifyError> for CliError {
+    fn from(error: IdentifyError) -> Self {
+        CliError::Identify(error.0)
+    }
+}
+
+impl From<ReplayError> for CliError {
+    fn from(error: ReplayError) -> Self {
+        match error {
+            ReplayError::Link(error) => CliError::Device(format!("{error}.")),
+            ReplayError::Input(sentence) => CliError::Input(sentence),
         }
     }
 }

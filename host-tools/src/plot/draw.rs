@@ -13,8 +13,8 @@ use plotters::style::FontStyle;
 use super::Written;
 use super::data::{History, Neighbours, Reconstruction, envelope};
 use crate::identify::Report;
+use crate::identify::simulate::{SimModel, nrmse, simulate};
 use crate::recording::Recording;
-use crate::simulate::{SimModel, nrmse, simulate};
 
 /// The font every figure uses (DejaVu Sans; licence beside it).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");

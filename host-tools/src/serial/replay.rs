@@ -17,8 +17,8 @@ use lssi_proto::{ModelSnapshot, NakReason, WireConfig, WireSample};
 use serde::Serialize;
 
 use crate::identify::{self, Report, TERM_CAPACITY};
-use crate::link::{Link, LinkError, LinkStats};
 use crate::recording::Recording;
+use crate::serial::link::{Link, LinkError, LinkStats};
 
 /// What `lssi replay --json` prints: `lssi identify --json`'s object plus `"link"`.
 #[derive(Clone, Debug, Serialize, PartialEq)]

@@ -21,7 +21,9 @@
 //! file. [`read_log`] returns every whole record and says whether a partial tail was skipped;
 //! [`TelemetryLog::open`] cuts such a tail off (and notes it) before appending a new session.
 //! Frames are stored raw, CRC errors included, and decoded only when read: a log keeps what the
-//! wire carried even if a later protocol reads it differently.
+//! wire carried even if a later protocol reads it differently. The device's own log lines come
+//! as defmt bytes, which [`defmt`] decodes with the tables in the firmware's ELF; [`decode`] turns records
+//! into what `lssi log` prints.
 //!
 //! ```
 //! use lssi_host::telemetry::{read_log, RecordKind, TelemetryLog};
@@ -36,6 +38,9 @@
 //! assert_eq!(contents.records[0].data, b"hello");
 //! assert!(contents.partial_tail.is_none());
 //! ```
+
+pub mod decode;
+pub mod defmt;
 
 use std::fmt;
 use std::fs::{File, OpenOptions};

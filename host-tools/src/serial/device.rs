@@ -16,6 +16,8 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
+use crate::serial::qemu;
+
 /// The environment variable that names the `firmware-sim` executable to run.
 pub const SIM_ENV: &str = "LSSI_FIRMWARE_SIM";
 /// The firmware image `--qemu` runs without `--firmware`, relative to the workspace.
@@ -147,17 +149,14 @@ impl DeviceProcess {
                 firmware.display()
             )));
         }
-        let program = find_on_path("qemu-system-arm").ok_or_else(|| {
+        let program = qemu::find().ok_or_else(|| {
             StartError(
                 "qemu-system-arm is not installed (apt-get install qemu-system-arm), so --qemu \
                  cannot run the firmware"
                     .into(),
             )
         })?;
-        let mut child = Command::new(&program)
-            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic"])
-            .args(["-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"])
+        let mut child = qemu::command(&program)
             .args(["-icount", "shift=0", "-serial", "pty", "-kernel"])
             .arg(firmware)
             .stdin(Stdio::null())
