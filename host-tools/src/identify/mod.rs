@@ -66,17 +66,10 @@ impl Default for Options {
     }
 }
 
-/// Why a recording cannot be identified.
-#[derive(Debug, Clone, PartialEq)]
+/// Why a recording cannot be identified: one sentence naming the file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
 pub struct IdentifyError(pub String);
-
-impl std::fmt::Display for IdentifyError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for IdentifyError {}
 
 /// One term of the selected model.
 #[derive(Clone, Debug, Serialize, PartialEq)]

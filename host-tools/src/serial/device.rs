@@ -9,7 +9,6 @@
 //! a `firmware-sim` next to the running executable (or one directory up, for a test binary
 //! in `target/*/deps`), then the `PATH`. `cargo build --workspace` puts it next to `lssi`.
 
-use std::fmt;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, Stdio};
@@ -42,16 +41,9 @@ pub struct SimOptions {
 }
 
 /// Why a device process could not be started.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
 pub struct StartError(pub String);
-
-impl fmt::Display for StartError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for StartError {}
 
 /// A child process that plays the device, with the pty it serves.
 #[derive(Debug)]

@@ -23,7 +23,6 @@ pub mod ode;
 pub mod paper;
 pub mod truth;
 
-use std::fmt;
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
@@ -101,7 +100,8 @@ impl Generated {
 }
 
 /// A generator option that cannot be used; names the field at fault.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field} = {value} cannot be used: it must be {requirement}.")]
 pub struct OptionError {
     /// The option's field name, e.g. `dt`.
     pub field: &'static str,
@@ -110,18 +110,6 @@ pub struct OptionError {
     /// What the value must be, as the end of a sentence: "positive and finite".
     pub requirement: &'static str,
 }
-
-impl fmt::Display for OptionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} = {} cannot be used: it must be {}.",
-            self.field, self.value, self.requirement
-        )
-    }
-}
-
-impl std::error::Error for OptionError {}
 
 /// Checks that `value` is finite, naming `field` if not.
 pub(crate) fn require_finite(field: &'static str, value: f64) -> Result<(), OptionError> {

@@ -42,7 +42,6 @@
 pub mod decode;
 pub mod defmt;
 
-use std::fmt;
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -147,30 +146,19 @@ pub struct Skipped {
 }
 
 /// Why a log cannot be read.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LogError {
     /// The file does not start with [`MAGIC`].
+    #[error("the file is not an lssi telemetry log (it does not start with LSSITLM)")]
     NotALog,
     /// The file starts with the magic of another format version.
+    #[error(
+        "the file is a telemetry log of format version {theirs}, but this build reads version {ours}",
+        theirs = .0,
+        ours = MAGIC[7]
+    )]
     Version(u8),
 }
-
-impl fmt::Display for LogError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LogError::NotALog => f.write_str(
-                "the file is not an lssi telemetry log (it does not start with LSSITLM)",
-            ),
-            LogError::Version(v) => write!(
-                f,
-                "the file is a telemetry log of format version {v}, but this build reads version {}",
-                MAGIC[7]
-            ),
-        }
-    }
-}
-
-impl std::error::Error for LogError {}
 
 /// Reads every whole record of a log held in memory.
 ///
