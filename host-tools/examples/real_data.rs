@@ -53,9 +53,9 @@ use std::process::ExitCode;
 
 use lssi_core::PolyFamily;
 use lssi_core::derivative::Taps;
+use lssi_host::identify::simulate::{SimModel, nrmse, rmse, simulate};
 use lssi_host::identify::{self, Options, Report};
 use lssi_host::recording::{ColumnNames, Recording};
-use lssi_host::simulate::{SimModel, nrmse, rmse, simulate};
 
 /// One column of a CSV file, by header name.
 fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, String> {
@@ -243,7 +243,12 @@ fn velocity_at(case: &Case, report: &Report, i: usize) -> f64 {
     }
 }
 
-fn error_of(case: &Case, sim: &lssi_host::simulate::Simulation, c: usize, d: usize) -> Error {
+fn error_of(
+    case: &Case,
+    sim: &lssi_host::identify::simulate::Simulation,
+    c: usize,
+    d: usize,
+) -> Error {
     match (
         nrmse(&sim.x, &case.x[c..d]),
         rmse(&sim.x, &case.x[c..d]),
@@ -298,7 +303,7 @@ fn run_case(case: &Case) -> Result<Outcome, String> {
     // Restarted every `horizon` samples from the measured state; the pieces are joined.
     let (c, d) = case.validate[0].1;
     let h = case.horizon.0.max(1);
-    let mut joined = lssi_host::simulate::Simulation {
+    let mut joined = lssi_host::identify::simulate::Simulation {
         x: Vec::with_capacity(d - c),
         v: Vec::with_capacity(d - c),
         diverged_at: None,

@@ -1,7 +1,7 @@
 //! Coefficient error against measurement noise, from x alone, on the harvester of eq. 19
 //! (`lssi gen eveh --observe x --delta D --seed S [--wells monostable]`, 20 s at 2 kHz): the streaming
 //! model (f32, as on a device; `lssi identify --family odd`) and the same support refined on
-//! simulation error (`lssi_host::refine`), over seeds 1–5 at each noise level.
+//! simulation error (`lssi_host::identify::refine`), over seeds 1–5 at each noise level.
 //!
 //!     cargo run --release -p lssi-host --example refine_noise
 //!
@@ -10,10 +10,10 @@
 //! truth.
 
 use lssi_core::PolyFamily;
-use lssi_host::generators::eveh::{EvehOptions, Wells, generate_eveh};
+use lssi_host::identify::refine::{self, Chosen, Data};
+use lssi_host::identify::simulate::SimModel;
 use lssi_host::identify::{self, Options};
-use lssi_host::refine::{self, Chosen, Data};
-use lssi_host::simulate::SimModel;
+use lssi_host::synth::eveh::{EvehOptions, Wells, generate_eveh};
 
 struct Score {
     mean: f64,

@@ -16,12 +16,13 @@
 //! assert!(error.to_string().starts_with("a.csv: the file is empty"));
 //! ```
 
-use std::fmt;
 use std::io;
 use std::path::PathBuf;
 
-use crate::generators::OptionError;
+use crate::identify::IdentifyError;
 use crate::recording::RecordingError;
+use crate::serial::replay::ReplayError;
+use crate::synth::OptionError;
 
 /// Exit code for unusable input: a bad recording or a bad flag value.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -29,12 +30,14 @@ pub const EXIT_BAD_INPUT: u8 = 2;
 pub const EXIT_FAILURE: u8 = 1;
 
 /// A failure of an `lssi` subcommand.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CliError {
     /// An input recording cannot be used.
-    Recording(RecordingError),
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
     /// A flag's value cannot be used.
+    #[error("{flag} {value} cannot be used: it must be {requirement}.")]
     BadFlag {
         /// The flag, e.g. `--dt`.
         flag: &'static str,
@@ -44,6 +47,7 @@ pub enum CliError {
         requirement: String,
     },
     /// An output path cannot be used as given.
+    #[error("{}: {reason}.", .path.display())]
     BadOutput {
         /// The path given.
         path: PathBuf,
@@ -51,6 +55,10 @@ pub enum CliError {
         reason: String,
     },
     /// A simulation left the finite numbers: the options have no bounded solution that long.
+    #[error(
+        "the {model} simulation diverged at t = {t} s, so these options have no bounded \
+         solution that long; try a smaller --t-end or other coefficients."
+    )]
     Diverged {
         /// The generator's model name.
         model: String,
@@ -58,13 +66,17 @@ pub enum CliError {
         t: f64,
     },
     /// The identifier cannot use a recording (a sentence naming the file).
+    #[error("{0}")]
     Identify(String),
     /// An input other than a recording cannot be used (a telemetry log, a firmware image, a
     /// configuration the device refuses): a sentence naming it.
+    #[error("{0}")]
     Input(String),
     /// The device or the link to it failed while working: a sentence naming the port.
+    #[error("{0}")]
     Device(String),
     /// An output file could not be written.
+    #[error("{}: cannot write the file: {source}.", .path.display())]
     Write {
         /// The file.
         path: PathBuf,
@@ -97,51 +109,17 @@ impl CliError {
     }
 }
 
-impl fmt::Display for CliError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            CliError::Recording(error) => error.fmt(f),
-            CliError::Identify(sentence)
-            | CliError::Input(sentence)
-            | CliError::Device(sentence) => f.write_str(sentence),
-            CliError::BadFlag {
-                flag,
-                value,
-                requirement,
-            } => write!(
-                f,
-                "{flag} {value} cannot be used: it must be {requirement}."
-            ),
-            CliError::BadOutput { path, reason } => write!(f, "{}: {reason}.", path.display()),
-            CliError::Diverged { model, t } => write!(
-                f,
-                "the {model} simulation diverged at t = {t} s, so these options have no \
-                 bounded solution that long; try a smaller --t-end or other coefficients."
-            ),
-            CliError::Write { path, source } => {
-                write!(f, "{}: cannot write the file: {source}.", path.display())
-            }
-        }
+impl From<IdentifyError> for CliError {
+    fn from(error: IdentifyError) -> Self {
+        CliError::Identify(error.0)
     }
 }
 
-impl std::error::Error for CliError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            CliError::Recording(error) => Some(error),
-            CliError::Write { source, .. } => Some(source),
-            CliError::BadFlag { .. }
-            | CliError::BadOutput { .. }
-            | CliError::Diverged { .. }
-            | CliError::Identify(_)
-            | CliError::Input(_)
-            | CliError::Device(_) => None,
+impl From<ReplayError> for CliError {
+    fn from(error: ReplayError) -> Self {
+        match error {
+            ReplayError::Link(error) => CliError::Device(format!("{error}.")),
+            ReplayError::Input(sentence) => CliError::Input(sentence),
         }
-    }
-}
-
-impl From<RecordingError> for CliError {
-    fn from(error: RecordingError) -> Self {
-        CliError::Recording(error)
     }
 }

@@ -1,17 +1,20 @@
 //! The host side of lssi: the `lssi` command's building blocks, usable from tests and tools.
 //!
 //! - [`recording`]: CSV recordings in and out, with one-sentence errors.
-//! - [`generators`]: synthetic recordings with a known equation ([`generators::paper`] is the
-//!   paper's eq. 17), built on [`ode`] (fixed-step RK4) and [`noise`] (eq. 16).
-//! - [`simulate`]: free simulation of an identified model, and its NRMSE against a record.
+//! - [`identify`]: a recording through the streaming identifier, and around it the model over
+//!   time ([`identify::track`]), free simulation ([`identify::simulate`]), output-error
+//!   refinement ([`identify::refine`]) and the names of library terms ([`identify::terms`]).
+//! - [`synth`]: synthetic recordings with a known equation (`lssi gen`; [`synth::paper`] is the
+//!   paper's eq. 17), built on [`synth::ode`] (fixed-step RK4) and [`synth::noise`] (eq. 16),
+//!   with their answer key ([`synth::truth`]).
+//! - [`serial`]: `lssi replay` and `lssi monitor` over a serial link ([`serial::link`]) to
+//!   `firmware-sim`, QEMU or a board ([`serial::device`]).
+//! - [`telemetry`]: the telemetry log the device's traffic goes to and `lssi log` reads, and the
+//!   device's defmt log lines ([`telemetry::defmt`]).
 //! - [`plot`]: the figures of `lssi plot` (PNG and SVG).
-//! - [`track`]: the identified coefficients over time, and the settle time after a change.
-//! - [`truth`]: the answer key a generator writes and a benchmark reads.
-//! - [`terms`]: how library terms are named across the project.
 //! - [`error`]: the command's failures, each a sentence and an exit code.
-//! - [`link`], [`replay`], [`device`], [`telemetry`], [`defmt`]: `lssi replay` over a serial
-//!   link (to `firmware-sim`, QEMU or a board) and the telemetry log `lssi log` reads.
-//! - [`commands`]: the subcommands that `main` dispatches to.
+//! - [`output`]: the command's buffered standard output.
+//! - [`commands`]: the subcommands' clap arguments and the glue that `main` dispatches to.
 //!
 //! A subcommand reads its input like this, and `main` prints the error as `lssi: <sentence>`:
 //!
@@ -30,21 +33,11 @@
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
 pub mod commands;
-pub mod defmt;
-pub mod device;
 pub mod error;
-pub mod generators;
 pub mod identify;
-pub mod link;
-pub mod noise;
-pub mod ode;
 pub mod output;
 pub mod plot;
 pub mod recording;
-pub mod refine;
-pub mod replay;
-pub mod simulate;
+pub mod serial;
+pub mod synth;
 pub mod telemetry;
-pub mod terms;
-pub mod track;
-pub mod truth;

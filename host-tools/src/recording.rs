@@ -26,7 +26,6 @@
 //! );
 //! ```
 
-use std::fmt;
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -97,6 +96,66 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// A few lines describing the recording (what `lssi info` prints): size, time span,
+    /// columns, and non-finite values.
+    pub fn describe(&self) -> String {
+        let recording = self;
+        let n = recording.len();
+        let first = recording.t.first().copied().unwrap_or(f64::NAN);
+        let last = recording.t.last().copied().unwrap_or(f64::NAN);
+        let mut text = format!(
+            "{}: {n} sample{}, t from {first} to {last} s",
+            recording.path.display(),
+            if n == 1 { "" } else { "s" }
+        );
+        if n > 1 {
+            text.push_str(&format!(
+                " (mean interval {} s)",
+                (last - first) / (n - 1) as f64
+            ));
+        }
+        text.push('\n');
+
+        let c = &recording.columns;
+        let optional = |name: &Option<String>| match name {
+            Some(name) => format!("'{name}'"),
+            None => "absent".to_owned(),
+        };
+        text.push_str(&format!(
+            "columns: t = '{}', x = '{}', v = {}, u = {}\n",
+            c.t,
+            c.x,
+            optional(&c.v),
+            optional(&c.u)
+        ));
+
+        let non_finite = |values: &[f64]| values.iter().filter(|v| !v.is_finite()).count();
+        let mut counts = vec![
+            ("t", non_finite(&recording.t)),
+            ("x", non_finite(&recording.x)),
+        ];
+        if let Some(v) = &recording.v {
+            counts.push(("v", non_finite(v)));
+        }
+        if let Some(u) = &recording.u {
+            counts.push(("u", non_finite(u)));
+        }
+        let counts: Vec<String> = counts
+            .iter()
+            .map(|(name, count)| format!("{name} {count}"))
+            .collect();
+        text.push_str(&format!("non-finite values: {}\n", counts.join(", ")));
+
+        let backwards = recording.t.windows(2).filter(|w| w[1] <= w[0]).count();
+        if backwards > 0 {
+            text.push_str(&format!(
+                "warning: t fails to increase at {backwards} row{}\n",
+                if backwards == 1 { "" } else { "s" }
+            ));
+        }
+        text
+    }
+
     /// Reads the CSV file at `path`; see [`parse_csv`].
     pub fn read(path: impl AsRef<Path>, columns: &ColumnNames) -> Result<Self, RecordingError> {
         read_csv(path, columns)
@@ -132,10 +191,11 @@ pub const MAX_LINE: usize = 1 << 20;
 
 /// Why a recording file cannot be used. Every message is one sentence that starts with the
 /// file name.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RecordingError {
     /// The file could not be opened or read.
+    #[error("{}: cannot read the file: {source}.", .path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -143,11 +203,21 @@ pub enum RecordingError {
         source: io::Error,
     },
     /// The file has no header row (it is empty or blank).
+    #[error(
+        "{}: the file is empty; a recording needs a header row such as 't,x,v' and then one row \
+         per sample.",
+        .path.display()
+    )]
     Empty {
         /// The file.
         path: PathBuf,
     },
     /// A line is longer than [`MAX_LINE`] bytes (not a recording: e.g. /dev/zero, a binary).
+    #[error(
+        "{}: line {line} is longer than {} bytes, so the file is not a CSV recording.",
+        .path.display(),
+        MAX_LINE
+    )]
     LineTooLong {
         /// The file.
         path: PathBuf,
@@ -155,6 +225,7 @@ pub enum RecordingError {
         line: usize,
     },
     /// A required column is not in the header.
+    #[error("{}", missing_column(.path, *.line, .column, .found))]
     MissingColumn {
         /// The file.
         path: PathBuf,
@@ -166,6 +237,11 @@ pub enum RecordingError {
         found: Vec<String>,
     },
     /// A column name appears more than once in the header, so which one to use is unclear.
+    #[error(
+        "{}: line {line}, column '{column}' appears more than once in the header, so which one \
+         to use is unclear.",
+        .path.display()
+    )]
     DuplicateColumn {
         /// The file.
         path: PathBuf,
@@ -175,11 +251,13 @@ pub enum RecordingError {
         column: String,
     },
     /// The header is there but no data rows follow.
+    #[error("{}: the header is there but no data rows follow it.", .path.display())]
     NoData {
         /// The file.
         path: PathBuf,
     },
     /// A row has a different number of fields than the header.
+    #[error("{}", ragged(.path, *.line, *.fields, .header))]
     Ragged {
         /// The file.
         path: PathBuf,
@@ -191,6 +269,7 @@ pub enum RecordingError {
         header: Vec<String>,
     },
     /// A field that should hold a number is empty.
+    #[error("{}: line {line}, column '{column}' is empty.", .path.display())]
     EmptyField {
         /// The file.
         path: PathBuf,
@@ -200,6 +279,7 @@ pub enum RecordingError {
         column: String,
     },
     /// A field holds text that is not a number.
+    #[error("{}: line {line}, column '{column}': {} is not a number.", .path.display(), quoted(.text))]
     NotANumber {
         /// The file.
         path: PathBuf,
@@ -211,6 +291,7 @@ pub enum RecordingError {
         text: String,
     },
     /// A field is not valid UTF-8 (the file is probably not a text CSV).
+    #[error("{}", not_text(.path, *.line, .column.as_deref()))]
     NotText {
         /// The file.
         path: PathBuf,
@@ -266,112 +347,60 @@ fn looks_like_numbers(fields: &[String]) -> bool {
     !fields.is_empty() && fields.iter().all(|f| f.parse::<f64>().is_ok())
 }
 
-impl fmt::Display for RecordingError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let file = self.path().display();
-        match self {
-            RecordingError::Io { source, .. } => {
-                write!(f, "{file}: cannot read the file: {source}.")
-            }
-            RecordingError::LineTooLong { line, .. } => write!(
-                f,
-                "{file}: line {line} is longer than {} bytes, so the file is not a CSV recording.",
-                MAX_LINE
-            ),
-            RecordingError::Empty { .. } => write!(
-                f,
-                "{file}: the file is empty; a recording needs a header row such as 't,x,v' \
-                 and then one row per sample."
-            ),
-            RecordingError::MissingColumn {
-                line,
-                column,
-                found,
-                ..
-            } => {
-                let list = found
-                    .iter()
-                    .map(|name| shortened(name))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                write!(
-                    f,
-                    "{file}: no column named '{column}' in the header (found: {list})"
-                )?;
-                if looks_like_numbers(found) {
-                    write!(
-                        f,
-                        "; line {line} looks like data, so the file seems to have no header row: \
-                         add one such as 't,x,v'."
-                    )
-                } else {
-                    write!(f, ".")
-                }
-            }
-            RecordingError::DuplicateColumn { line, column, .. } => write!(
-                f,
-                "{file}: line {line}, column '{column}' appears more than once in the header, so \
-                 which one to use is unclear."
-            ),
-            RecordingError::NoData { .. } => {
-                write!(f, "{file}: the header is there but no data rows follow it.")
-            }
-            RecordingError::Ragged {
-                line,
-                fields,
-                header,
-                ..
-            } => {
-                write!(
-                    f,
-                    "{file}: line {line} has {fields} field{} but the header has {}",
-                    if *fields == 1 { "" } else { "s" },
-                    header.len()
-                )?;
-                match header.get(*fields) {
-                    Some(missing) if *fields < header.len() => {
-                        write!(
-                            f,
-                            ", so column '{missing}' is missing (perhaps the line was cut short)."
-                        )
-                    }
-                    _ => match header.last() {
-                        Some(last) => write!(f, ", so it has fields beyond column '{last}'."),
-                        None => write!(f, "."),
-                    },
-                }
-            }
-            RecordingError::EmptyField { line, column, .. } => {
-                write!(f, "{file}: line {line}, column '{column}' is empty.")
-            }
-            RecordingError::NotANumber {
-                line, column, text, ..
-            } => write!(
-                f,
-                "{file}: line {line}, column '{column}': {} is not a number.",
-                quoted(text)
-            ),
-            RecordingError::NotText { line, column, .. } => match column {
-                Some(column) => write!(
-                    f,
-                    "{file}: line {line}, column '{column}' is not UTF-8 text, so this is probably \
-                     not a CSV file."
-                ),
-                None => write!(
-                    f,
-                    "{file}: line {line} is not UTF-8 text, so this is probably not a CSV file."
-                ),
-            },
-        }
+/// The sentence of [`RecordingError::MissingColumn`].
+fn missing_column(path: &Path, line: u64, column: &str, found: &[String]) -> String {
+    let list = found
+        .iter()
+        .map(|name| shortened(name))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let mut text = format!(
+        "{}: no column named '{column}' in the header (found: {list})",
+        path.display()
+    );
+    if looks_like_numbers(found) {
+        text.push_str(&format!(
+            "; line {line} looks like data, so the file seems to have no header row: \
+             add one such as 't,x,v'."
+        ));
+    } else {
+        text.push('.');
     }
+    text
 }
 
-impl std::error::Error for RecordingError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            RecordingError::Io { source, .. } => Some(source),
-            _ => None,
-        }
+/// The sentence of [`RecordingError::Ragged`].
+fn ragged(path: &Path, line: u64, fields: usize, header: &[String]) -> String {
+    let mut text = format!(
+        "{}: line {line} has {fields} field{} but the header has {}",
+        path.display(),
+        if fields == 1 { "" } else { "s" },
+        header.len()
+    );
+    match header.get(fields) {
+        Some(missing) if fields < header.len() => text.push_str(&format!(
+            ", so column '{missing}' is missing (perhaps the line was cut short)."
+        )),
+        _ => match header.last() {
+            Some(last) => text.push_str(&format!(", so it has fields beyond column '{last}'.")),
+            None => text.push('.'),
+        },
+    }
+    text
+}
+
+/// The sentence of [`RecordingError::NotText`].
+fn not_text(path: &Path, line: u64, column: Option<&str>) -> String {
+    match column {
+        Some(column) => format!(
+            "{}: line {line}, column '{column}' is not UTF-8 text, so this is probably not a CSV \
+             file.",
+            path.display()
+        ),
+        None => format!(
+            "{}: line {line} is not UTF-8 text, so this is probably not a CSV file.",
+            path.display()
+        ),
     }
 }
 
@@ -701,5 +730,18 @@ mod tests {
         assert_eq!(error.kind(), io::ErrorKind::InvalidInput);
         let error = write_csv_to(&mut out, &["t"], &[&[0.0], &[0.0]]).unwrap_err();
         assert_eq!(error.kind(), io::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn describes_a_small_recording() {
+        let text = "t,x,v\n0,1,nan\n0.5,2,0\n0.5,inf,1\n";
+        let recording = parse_csv("r.csv", text.as_bytes(), &ColumnNames::default()).unwrap();
+        assert_eq!(
+            recording.describe(),
+            "r.csv: 3 samples, t from 0 to 0.5 s (mean interval 0.25 s)\n\
+             columns: t = 't', x = 'x', v = 'v', u = absent\n\
+             non-finite values: t 0, x 1, v 1\n\
+             warning: t fails to increase at 1 row\n"
+        );
     }
 }

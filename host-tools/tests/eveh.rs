@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use lssi_host::truth::Truth;
+use lssi_host::synth::truth::Truth;
 
 const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
 

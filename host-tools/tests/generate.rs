@@ -2,13 +2,13 @@
 //! through files.
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use lssi_host::commands::generate::{truth_path, write_generated};
-use lssi_host::generators::paper::{MAX_STEP, PaperOptions, generate_paper};
-use lssi_host::generators::{Observe, sample_times};
-use lssi_host::noise::{NoiseKind, norm, stats};
-use lssi_host::ode::{State, integrate_at};
 use lssi_host::recording::{ColumnNames, read_csv};
-use lssi_host::truth::Truth;
+use lssi_host::synth::files::{truth_path, write_generated};
+use lssi_host::synth::noise::{NoiseKind, norm, stats};
+use lssi_host::synth::ode::{State, integrate_at};
+use lssi_host::synth::paper::{MAX_STEP, PaperOptions, generate_paper};
+use lssi_host::synth::truth::Truth;
+use lssi_host::synth::{Observe, sample_times};
 
 const KINDS: [NoiseKind; 3] = [NoiseKind::Paper, NoiseKind::Uniform0, NoiseKind::Gauss];
 

@@ -1,6 +1,6 @@
 //! The RK4 integrator against closed-form solutions of the linear oscillator.
 
-use lssi_host::ode::{State, integrate_at};
+use lssi_host::synth::ode::{State, integrate_at};
 
 /// Samples every 1 ms over 20 s, integrated with 10 steps per sample, as the generators do.
 fn grid() -> Vec<f64> {

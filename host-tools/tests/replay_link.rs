@@ -16,11 +16,11 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use lssi_device::{Device, NoCost, Transport};
-use lssi_host::commands::identify::identify_recording;
+use lssi_host::identify::identify_recording;
 use lssi_host::identify::{self, Options};
-use lssi_host::link::{Link, LinkError, LinkOptions, Quiet};
 use lssi_host::recording::{ColumnNames, Recording};
-use lssi_host::replay::{ReplayError, replay_over};
+use lssi_host::serial::link::{Link, LinkError, LinkOptions, Quiet};
+use lssi_host::serial::replay::{ReplayError, replay_over};
 use lssi_host::telemetry::{RecordKind, TelemetryLog, read_log};
 
 fn bundled() -> PathBuf {
@@ -104,7 +104,7 @@ fn device<const W: usize, const C: usize>(stream: UnixStream, faults: Faults) ->
 }
 
 struct Outcome {
-    result: Result<lssi_host::replay::ReplayReport, ReplayError>,
+    result: Result<lssi_host::serial::replay::ReplayReport, ReplayError>,
     log: PathBuf,
     _dir: tempfile::TempDir,
 }

@@ -2,12 +2,12 @@
 //! the bundled recording through the binary. Each assertion can fail: it compares with the
 //! true coefficients of eq. 17.
 
-use lssi_host::commands::bench::score;
-use lssi_host::commands::identify::identify_recording;
-use lssi_host::generators::Observe;
-use lssi_host::generators::paper::{PaperOptions, generate_paper};
+use lssi_host::identify::identify_recording;
 use lssi_host::identify::{Options, Report};
-use lssi_host::noise::NoiseKind;
+use lssi_host::synth::Observe;
+use lssi_host::synth::noise::NoiseKind;
+use lssi_host::synth::paper::{PaperOptions, generate_paper};
+use lssi_host::synth::truth::score;
 
 const TRUTH: [(&str, f64); 6] = [
     ("x", -1.0),

@@ -388,8 +388,8 @@ fn bundled_recording_through_qemu_firmware_equals_host_f32() {
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF: bash scripts/ci-qemu.sh runs it"]
 fn lssi_replay_qemu_reports_what_identify_f32_reports() {
-    use lssi_host::commands::identify::identify_recording;
     use lssi_host::commands::replay::{ReplayArgs, replay};
+    use lssi_host::identify::identify_recording;
 
     let elf = qemu_firmware();
     let file = repository().join("data/paper-eq17.csv");

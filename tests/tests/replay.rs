@@ -11,10 +11,10 @@
 
 use std::path::{Path, PathBuf};
 
-use lssi_host::commands::identify::identify_recording;
 use lssi_host::commands::replay::{ReplayArgs, replay};
-use lssi_host::device::find_firmware_sim;
+use lssi_host::identify::identify_recording;
 use lssi_host::recording::{ColumnNames, Recording};
+use lssi_host::serial::device::find_firmware_sim;
 use lssi_host::telemetry::{RecordKind, read_log};
 
 fn bundled() -> PathBuf {

@@ -7,10 +7,10 @@
 use std::path::{Path, PathBuf};
 
 use lssi_core::PolyFamily;
+use lssi_host::identify::refine::{self, Data};
+use lssi_host::identify::simulate::SimModel;
 use lssi_host::identify::{self, Options};
 use lssi_host::recording::{ColumnNames, Recording};
-use lssi_host::refine::{self, Data};
-use lssi_host::simulate::SimModel;
 
 fn shared() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/silverbox/SNLS80mV.csv")

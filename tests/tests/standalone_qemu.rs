@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use lssi_host::commands::generate::{self, GenArgs};
-use lssi_host::commands::identify::identify_recording;
 use lssi_host::commands::monitor::{MonitorArgs, monitor};
 use lssi_host::identify::Options;
+use lssi_host::identify::identify_recording;
 use lssi_host::recording::{ColumnNames, Recording};
 use serde_json::Value;
 

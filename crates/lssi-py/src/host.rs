@@ -8,7 +8,7 @@ pub use lssi_host::identify::Options;
 pub use lssi_host::identify::Report;
 use lssi_host::identify::{self, TERM_CAPACITY};
 use lssi_host::recording::{ColumnNames, Recording};
-use lssi_host::simulate::{self, SimModel};
+use lssi_host::identify::simulate::{self, SimModel};
 
 /// The ring-buffer capacity `lssi identify` runs with.
 pub use lssi_host::identify::WINDOW_CAPACITY;

@@ -10,12 +10,13 @@ use std::time::Instant;
 
 use clap::{Args, Subcommand};
 
-use crate::commands::identify::identify_recording;
 use crate::error::CliError;
-use crate::generators::Observe;
-use crate::generators::paper::{PaperOptions, generate_paper};
-use crate::identify::{Options, Report};
-use crate::noise::NoiseKind;
+use crate::identify::Options;
+use crate::identify::identify_recording;
+use crate::synth::Observe;
+use crate::synth::noise::NoiseKind;
+use crate::synth::paper::{PaperOptions, generate_paper};
+use crate::synth::truth::score;
 
 /// Arguments of `lssi bench`.
 #[derive(Debug, Clone, Args)]
@@ -52,25 +53,6 @@ fn truth(epsilon: f64) -> [(&'static str, f64); 6] {
         ("x^2*v", -2.0 * epsilon),
         ("cos(2t)", 5.0 * epsilon),
     ]
-}
-
-/// Per-coefficient errors (%) (100 for a missed term) and the number of spurious terms.
-pub fn score(report: &Report, truth: &[(&str, f64)]) -> (Vec<f64>, usize) {
-    let errors = truth
-        .iter()
-        .map(
-            |(name, c)| match report.terms.iter().find(|t| t.term == *name) {
-                Some(t) => ((t.coef - c) / c).abs() * 100.0,
-                None => 100.0,
-            },
-        )
-        .collect();
-    let spurious = report
-        .terms
-        .iter()
-        .filter(|t| !truth.iter().any(|(n, _)| *n == t.term))
-        .count();
-    (errors, spurious)
 }
 
 fn options(f32: bool, smoothing: bool) -> Options {
@@ -163,11 +145,9 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     };
     let generated = generate_paper(&opts);
     let recording = generated.to_recording("eq17-1e6.csv");
-    let (config, _) = crate::identify::configure(&recording, &options(true, true))
-        .map_err(|e| CliError::Identify(e.0))?;
+    let (config, _) = crate::identify::configure(&recording, &options(true, true))?;
     let start = Instant::now();
-    let report = crate::identify::run::<f32>(&recording, config, false)
-        .map_err(|e| CliError::Identify(e.0))?;
+    let report = crate::identify::run::<f32>(&recording, config, false)?;
     let streaming = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let _ = identify_recording(&recording, &options(true, true))?;

@@ -3,24 +3,22 @@
 //! `OUT.csv` gets the observed columns (`t,x`, `t,x,v`, and for `eveh --input` also `u`) and
 //! `OUT.json` the [`Truth`]: the equation's terms and coefficients, every option, and the
 //! noise that was added. Models: `paper` (eq. 17) and `eveh` (the harvester, eq. 19; see
-//! [`crate::generators::eveh`] for how Table 5 becomes its coefficients).
+//! [`crate::synth::eveh`] for how Table 5 becomes its coefficients).
 //!
-//! [`Truth`]: crate::truth::Truth
+//! [`Truth`]: crate::synth::truth::Truth
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
 use crate::error::CliError;
-use crate::generators::eveh::{
-    Drift, DriftParameter, EvehGenerated, EvehOptions, EvehParams, Excitation, Wells, generate_eveh,
+use crate::synth::Observe;
+use crate::synth::eveh::{
+    Drift, DriftParameter, EvehOptions, EvehParams, Excitation, Wells, generate_eveh,
 };
-use crate::generators::paper::{PaperOptions, PaperParams, generate_paper};
-use crate::generators::{Generated, Observe};
-use crate::noise::NoiseKind;
-use crate::recording::write_csv;
+use crate::synth::files::{truth_path, write_eveh, write_generated};
+use crate::synth::noise::NoiseKind;
+use crate::synth::paper::{PaperOptions, PaperParams, generate_paper};
 
 /// Arguments of `lssi gen`.
 #[derive(Debug, Clone, Args)]
@@ -335,16 +333,6 @@ fn run_eveh(args: &EvehArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Writes a generated harvester recording (with its `u` column, if any) and its truth.
-pub fn write_eveh(csv: &Path, json: &Path, generated: &EvehGenerated) -> Result<(), CliError> {
-    let (header, columns) = generated.csv_columns();
-    write_csv(csv, &header, &columns).map_err(|source| CliError::Write {
-        path: csv.to_owned(),
-        source,
-    })?;
-    write_truth(json, &generated.generated)
-}
-
 fn run_paper(args: &PaperArgs) -> Result<(), CliError> {
     let options = args.options();
     options.validate().map_err(|error| {
@@ -378,70 +366,9 @@ fn run_paper(args: &PaperArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The truth file that goes beside `csv`: same stem, extension `.json`.
-pub fn truth_path(csv: &Path) -> Result<PathBuf, CliError> {
-    if csv.file_name().is_none() {
-        return Err(CliError::BadOutput {
-            path: csv.to_owned(),
-            reason: "this is not a file name; give the CSV file to write, such as out.csv"
-                .to_owned(),
-        });
-    }
-    if csv
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-    {
-        return Err(CliError::BadOutput {
-            path: csv.to_owned(),
-            reason: "the recording cannot end in .json, because the truth file is written \
-                     beside it under that name; use .csv"
-                .to_owned(),
-        });
-    }
-    Ok(csv.with_extension("json"))
-}
-
-/// Writes a generated recording to `csv` and its truth, pretty-printed, to `json`.
-pub fn write_generated(csv: &Path, json: &Path, generated: &Generated) -> Result<(), CliError> {
-    let (header, columns) = generated.csv_columns();
-    write_csv(csv, &header, &columns).map_err(|source| CliError::Write {
-        path: csv.to_owned(),
-        source,
-    })?;
-    write_truth(json, generated)
-}
-
-/// Writes the truth of a generated recording, pretty-printed, to `json`.
-fn write_truth(json: &Path, generated: &Generated) -> Result<(), CliError> {
-    let write_json = || -> std::io::Result<()> {
-        let mut writer = BufWriter::new(File::create(json)?);
-        serde_json::to_writer_pretty(&mut writer, &generated.truth)?;
-        writeln!(writer)?;
-        writer.flush()
-    };
-    write_json().map_err(|source| CliError::Write {
-        path: json.to_owned(),
-        source,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn truth_goes_beside_the_csv() {
-        assert_eq!(
-            truth_path(Path::new("dir/run.csv")).ok(),
-            Some(PathBuf::from("dir/run.json"))
-        );
-        assert_eq!(
-            truth_path(Path::new("run")).ok(),
-            Some(PathBuf::from("run.json"))
-        );
-        assert!(truth_path(Path::new("run.json")).is_err());
-        assert!(truth_path(Path::new("..")).is_err());
-    }
 
     #[test]
     fn flag_defaults_are_the_library_defaults() {

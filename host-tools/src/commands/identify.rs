@@ -2,30 +2,22 @@
 //!
 //! With `--track` it prints instead the model selected at every screening (every `--every`
 //! seconds) as CSV on stdout, or JSON lines with `--json`, and the settle time after a change
-//! (see [`crate::track`]): on stderr after the CSV, or as a last JSON line
+//! (see [`crate::identify::track`]): on stderr after the CSV, or as a last JSON line
 //! `{"settle": {...}}`. The change time is `--change-at`, or the drift time of `--truth`;
 //! the reference is the truth's coefficients after the change, or else the last snapshot.
 
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use crate::commands::identifier::IdentifierArgs;
 use crate::error::CliError;
-use crate::identify::{self, Options};
+use crate::identify::track::{self, TrackOptions};
+use crate::identify::{self, Options, batch};
 use crate::recording::{ColumnNames, Recording};
-use crate::track::{self, TrackOptions};
-use crate::truth::Truth;
-
-/// Monomial families (clap's view of [`lssi_core::PolyFamily`]).
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum Family {
-    /// Every monomial x^a v^b up to the order.
-    All,
-    /// x^k and x^(k-1)*v.
-    Families,
-    /// x^k and x^(k-1)*v for odd k (the paper's Table 7).
-    Odd,
-}
+use crate::synth::truth::Truth;
 
 /// Arguments of `lssi identify`.
 #[derive(Debug, Clone, Args)]
@@ -42,27 +34,15 @@ pub struct IdentifyArgs {
     /// rejected, error) instead of text.
     #[arg(long, conflicts_with = "json")]
     pub csv: bool,
-    /// Base excitation frequency Ω in rad/s (default: estimated from the data).
-    #[arg(long, value_name = "RAD_PER_S")]
-    pub omega: Option<f64>,
-    /// sin/cos(kΩt) terms for k = 1..H (0: none, for a measured excitation u).
-    #[arg(long, default_value_t = 1, value_name = "H")]
-    pub harmonics: u8,
-    /// Highest order of the monomials of (x, v).
-    #[arg(long, default_value_t = 3, value_name = "P")]
-    pub poly_order: u8,
-    /// Which monomials.
-    #[arg(long, value_enum, default_value_t = Family::All)]
-    pub family: Family,
+    /// The identifier's flags (shared with `lssi replay`).
+    #[command(flatten)]
+    pub identifier: IdentifierArgs,
     /// Compute in f32, as a device does (the default).
     #[arg(long, conflicts_with = "f64")]
     pub f32: bool,
     /// Compute in f64 (the reference).
     #[arg(long)]
     pub f64: bool,
-    /// Turn the k-neighbour smoothing off (the ablation).
-    #[arg(long)]
-    pub no_smoothing: bool,
     /// Also refine the selected terms' coefficients on simulation error (f64, host only):
     /// reports the refined model with standard errors, its held-out fit and the free run's
     /// NRMSE (`"refined"` in --json); the streaming model above stays the device's.
@@ -71,9 +51,6 @@ pub struct IdentifyArgs {
     /// The unit of x, for the text report (e.g. m, mm, V).
     #[arg(long, value_name = "UNIT", default_value = "[x]")]
     pub unit: String,
-    /// Forgetting time constant in seconds (default: remember everything).
-    #[arg(long, value_name = "SECONDS")]
-    pub memory: Option<f64>,
     /// Experimental: take the noise of the derivative estimates out of the normal equations
     /// (errors in variables; rows as they are, without the test-function sums; host only,
     /// the device protocol does not carry it)
@@ -111,51 +88,10 @@ pub struct IdentifyArgs {
 impl IdentifyArgs {
     /// The identifier options these flags ask for.
     pub fn options(&self) -> Result<Options, CliError> {
-        if let Some(w) = self.omega
-            && !(w.is_finite() && w > 0.0)
-        {
-            return Err(CliError::BadFlag {
-                flag: "--omega",
-                value: w.to_string(),
-                requirement: "a positive angular frequency in rad/s".into(),
-            });
-        }
-        if let Some(m) = self.memory
-            && !(m.is_finite() && m > 0.0)
-        {
-            return Err(CliError::BadFlag {
-                flag: "--memory",
-                value: m.to_string(),
-                requirement: "a positive time in seconds".into(),
-            });
-        }
-        if !(1..=9).contains(&self.poly_order) {
-            return Err(CliError::BadFlag {
-                flag: "--poly-order",
-                value: self.poly_order.to_string(),
-                requirement: "between 1 and 9".into(),
-            });
-        }
-        if self.harmonics > 8 {
-            return Err(CliError::BadFlag {
-                flag: "--harmonics",
-                value: self.harmonics.to_string(),
-                requirement: "at most 8".into(),
-            });
-        }
         Ok(Options {
-            omega: self.omega,
-            harmonics: self.harmonics,
-            poly_order: self.poly_order,
-            family: match self.family {
-                Family::All => lssi_core::PolyFamily::All,
-                Family::Families => lssi_core::PolyFamily::Families,
-                Family::Odd => lssi_core::PolyFamily::OddFamilies,
-            },
             f32: !self.f64,
-            smoothing: !self.no_smoothing,
-            memory: self.memory,
             noise_correction: self.noise_correction,
+            ..self.identifier.options()?
         })
     }
 }
@@ -217,13 +153,13 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
     args.check_track_flags()?;
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
-        return super::batch::run(args, &options);
+        return run_batch(args, &options);
     }
     let recording = Recording::read(&args.file, &args.columns)?;
     if args.track {
         return run_track(args, &recording, &options);
     }
-    let report = identify_recording(&recording, &options)?;
+    let report = identify::identify_recording(&recording, &options)?;
     // Each rejected sample, on stderr: the first few named, then how many more.
     const NAMED: usize = 5;
     for warning in report.rejections.iter().take(NAMED) {
@@ -237,14 +173,14 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
         );
     }
     let refined = args.refine.then(|| {
-        let model = crate::simulate::SimModel::from_report(&report);
-        let data = crate::refine::Data {
+        let model = crate::identify::simulate::SimModel::from_report(&report);
+        let data = crate::identify::refine::Data {
             t: &recording.t,
             x: &recording.x,
             u: recording.u.as_deref(),
         };
-        crate::refine::Summary::of(
-            &crate::refine::refine_and_check(&model, &data),
+        crate::identify::refine::Summary::of(
+            &crate::identify::refine::refine_and_check(&model, &data),
             report.omega,
         )
     });
@@ -267,18 +203,57 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Configures and runs the identifier on a recording.
-pub fn identify_recording(
-    recording: &Recording,
-    options: &Options,
-) -> Result<identify::Report, CliError> {
-    let bad = |e: identify::IdentifyError| CliError::Identify(e.0);
-    let (config, estimated) = identify::configure(recording, options).map_err(bad)?;
-    if options.f32 {
-        identify::run::<f32>(recording, config, estimated).map_err(bad)
-    } else {
-        identify::run::<f64>(recording, config, estimated).map_err(bad)
+/// `lssi identify FILE...`: every file identified in parallel; printed in the order given, and
+/// the exit code is 2 if any failed.
+fn run_batch(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
+    if args.track {
+        return Err(CliError::BadFlag {
+            flag: "--track",
+            value: "with several recordings".into(),
+            requirement: "used with one recording only".into(),
+        });
     }
+    let mut paths = vec![args.file.clone()];
+    paths.extend(args.more.iter().cloned());
+    let files = batch::expand(&paths)?;
+    let bar = if std::io::stderr().is_terminal() {
+        let bar =
+            ProgressBar::with_draw_target(Some(files.len() as u64), ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} recordings {elapsed}")
+        {
+            bar.set_style(style);
+        }
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let results = batch::identify_all(&files, &args.columns, options, || bar.inc(1));
+    bar.finish_and_clear();
+    let mut out = String::new();
+    if args.csv {
+        out.push_str(batch::CSV_HEADER);
+    }
+    for (path, result) in files.iter().zip(&results) {
+        let file = path.display().to_string();
+        out.push_str(&if args.json {
+            batch::json_line(&file, result)
+        } else if args.csv {
+            batch::csv_row(&file, result)
+        } else {
+            batch::text_block(&file, result)
+        });
+    }
+    if let Err(e) = std::io::stdout().write_all(out.as_bytes()) {
+        crate::output::fail(&e)
+    }
+    let failed = results.iter().filter(|r| r.is_err()).count();
+    if failed > 0 {
+        return Err(CliError::Input(format!(
+            "{failed} of {} recordings could not be identified (their rows say why).",
+            files.len()
+        )));
+    }
+    Ok(())
 }
 
 /// `lssi identify --track`: the snapshots, then the settle time.
@@ -287,7 +262,6 @@ fn run_track(
     recording: &Recording,
     options: &Options,
 ) -> Result<(), CliError> {
-    let bad = |e: identify::IdentifyError| CliError::Identify(e.0);
     let truth: Option<Truth> = match &args.truth {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|e| CliError::BadFlag {
@@ -303,14 +277,13 @@ fn run_track(
         }
         None => None,
     };
-    let (config, _) = identify::configure(recording, options).map_err(bad)?;
+    let (config, _) = identify::configure(recording, options)?;
     let track_options = TrackOptions { every: args.every };
     let track = if options.f32 {
         track::track::<f32>(recording, config, &track_options)
     } else {
         track::track::<f64>(recording, config, &track_options)
-    }
-    .map_err(bad)?;
+    }?;
     let (reference, truth_change) = match &truth {
         Some(truth) => {
             let (r, c) =
@@ -352,23 +325,8 @@ fn run_track(
     } else {
         crate::out!("{}", track::to_csv(&track));
         if let Some(s) = &settle {
-            eprintln!("{}", settle_sentence(s, reference_name));
+            eprintln!("{}", s.sentence(reference_name));
         }
     }
     Ok(())
-}
-
-/// The settle time as a sentence.
-fn settle_sentence(s: &track::Settle, reference: &str) -> String {
-    let tol = 100.0 * s.tolerance;
-    match (s.settled_at, s.settle_time) {
-        (Some(at), Some(time)) => format!(
-            "settled {time:.3} s after the change at {} s (from t = {at} s every coefficient stays within {tol} % of {reference}).",
-            s.change_at
-        ),
-        _ => format!(
-            "not settled: after the change at {} s the coefficients never stay within {tol} % of {reference} to the end of the record.",
-            s.change_at
-        ),
-    }
 }

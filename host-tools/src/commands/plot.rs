@@ -9,8 +9,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::commands::identify::{IdentifyArgs, identify_recording};
+use crate::commands::identify::IdentifyArgs;
 use crate::error::CliError;
+use crate::identify::identify_recording;
 use crate::plot::{Units, plot_all};
 use crate::recording::Recording;
 

@@ -6,22 +6,19 @@
 //! `FILE.tlm` next to the recording) as it arrives; `lssi log` prints it.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lssi_proto::ModelSnapshot;
 
-use crate::commands::identify::{Family, IdentifyArgs};
-use crate::defmt::{DefmtLines, Tables};
-use crate::device::{DEFAULT_FIRMWARE, DeviceProcess, SimOptions};
+use crate::commands::identifier::IdentifierArgs;
 use crate::error::CliError;
 use crate::identify::{self, Options};
-use crate::link::{Link, LinkOptions, LinkStats, Observer};
-use crate::recording::{ColumnNames, Recording};
-use crate::replay::{ReplayError, ReplayReport, render_link, replay_over, wire_config};
-use crate::telemetry::{RecordKind, TelemetryLog};
+use crate::recording::ColumnNames;
+use crate::serial::device::{DEFAULT_FIRMWARE, SimOptions};
+use crate::serial::link::LinkOptions;
+use crate::serial::replay::{ReplayReport, render_link};
+use crate::serial::session::{self, Device, Setup};
 
 /// Arguments of `lssi replay`.
 #[derive(Debug, Clone, Args)]
@@ -65,24 +62,9 @@ pub struct ReplayArgs {
     /// Most samples per batch (at most 24).
     #[arg(long, default_value_t = lssi_proto::MAX_BATCH, value_name = "N")]
     pub batch: usize,
-    /// Base excitation frequency Ω in rad/s (default: estimated from the data).
-    #[arg(long, value_name = "RAD_PER_S")]
-    pub omega: Option<f64>,
-    /// sin/cos(kΩt) terms for k = 1..H (0: none, for a measured excitation u).
-    #[arg(long, default_value_t = 1, value_name = "H")]
-    pub harmonics: u8,
-    /// Highest order of the monomials of (x, v).
-    #[arg(long, default_value_t = 3, value_name = "P")]
-    pub poly_order: u8,
-    /// Which monomials.
-    #[arg(long, value_enum, default_value_t = Family::All)]
-    pub family: Family,
-    /// Turn the k-neighbour smoothing off (the ablation).
-    #[arg(long)]
-    pub no_smoothing: bool,
-    /// Forgetting time constant in seconds (default: remember everything).
-    #[arg(long, value_name = "SECONDS")]
-    pub memory: Option<f64>,
+    /// The identifier's flags (shared with `lssi identify`).
+    #[command(flatten)]
+    pub identifier: IdentifierArgs,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
@@ -105,45 +87,10 @@ impl ReplayArgs {
             .map_err(|e| CliError::Input(format!("{}: {e}", file.display())))
     }
 
-    /// The identifier options: those `lssi identify --f32` takes from the same flags.
-    ///
-    /// The flags go through `lssi identify`'s own parser and checks, so both commands accept
-    /// and refuse the same values and agree on every default.
+    /// The identifier options: those `lssi identify --f32` takes from the same flags (the
+    /// same struct, flattened into both commands).
     pub fn options(&self) -> Result<Options, CliError> {
-        #[derive(clap::Parser)]
-        struct Identify {
-            #[command(flatten)]
-            args: IdentifyArgs,
-        }
-        let mut argv: Vec<std::ffi::OsString> =
-            vec!["lssi identify".into(), self.file.clone().into()];
-        // `--flag=value`, so that a negative value is not taken for a flag.
-        let mut flag = |name: &str, value: String| argv.push(format!("{name}={value}").into());
-        if let Some(omega) = self.omega {
-            flag("--omega", omega.to_string());
-        }
-        flag("--harmonics", self.harmonics.to_string());
-        flag("--poly-order", self.poly_order.to_string());
-        let family = match self.family {
-            Family::All => "all",
-            Family::Families => "families",
-            Family::Odd => "odd",
-        };
-        flag("--family", family.into());
-        if let Some(memory) = self.memory {
-            flag("--memory", memory.to_string());
-        }
-        if self.no_smoothing {
-            argv.push("--no-smoothing".into());
-        }
-        argv.push("--f32".into());
-        let parsed = <Identify as clap::Parser>::try_parse_from(argv).map_err(|e| {
-            CliError::Input(format!(
-                "the identification flags cannot be used: {}.",
-                e.kind()
-            ))
-        })?;
-        parsed.args.options()
+        self.identifier.options()
     }
 
     /// The link's pacing from the flags.
@@ -217,47 +164,6 @@ impl ReplayArgs {
     }
 }
 
-/// Shows progress on a terminal and prints the device's log lines.
-struct Watcher {
-    bar: ProgressBar,
-    lines: DefmtLines,
-    baud: u32,
-}
-
-impl Observer for Watcher {
-    fn progress(&mut self, stats: &LinkStats) {
-        self.bar.set_position(stats.samples_acked);
-        let rate = stats.samples_per_second();
-        let bound = stats.bound(self.baud);
-        self.bar.set_message(format!(
-            "{} frames sent, {} retransmitted, {:.0} samples/s ({:.0} % of the {} baud bound)",
-            stats.frames_sent,
-            stats.retransmits,
-            rate,
-            if bound > 0.0 {
-                100.0 * rate / bound
-            } else {
-                0.0
-            },
-            self.baud
-        ));
-    }
-
-    fn device_log(&mut self, bytes: &[u8]) {
-        for line in self.lines.push(bytes) {
-            self.bar.suspend(|| eprintln!("device: {line}"));
-        }
-    }
-
-    fn model(&mut self, snapshot: &ModelSnapshot) {
-        self.bar.set_message(format!(
-            "model at {} samples ({} terms active)",
-            snapshot.samples,
-            snapshot.coefficients.iter().filter(|c| **c != 0.0).count()
-        ));
-    }
-}
-
 /// Runs `lssi replay`.
 pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
     let report = replay(args)?;
@@ -268,127 +174,29 @@ pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
 /// Replays as the flags say and returns the report (what `lssi replay` prints).
 pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     let options = args.options()?;
-    let link_options = args.link_options()?;
-    let sim_options = args.sim_options()?;
-    let firmware = args
-        .firmware
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(DEFAULT_FIRMWARE));
-    let elf = args
-        .elf
-        .clone()
-        .or_else(|| args.qemu.then(|| firmware.clone()));
-    let tables = match &elf {
-        Some(path) if !args.qemu || path.is_file() => {
-            Some(Tables::load(path).map_err(|e| CliError::Input(format!("{e}."))))
-        }
-        _ => None,
-    }
-    .transpose()?;
-
-    let recording = Recording::read(&args.file, &args.columns)?;
-    let (config, estimated) =
-        identify::configure(&recording, &options).map_err(|e| CliError::Identify(e.0))?;
-    let wire = wire_config(&recording, &config).map_err(replay_error)?;
-
-    let log_path = args.log_path();
-    let mut log = TelemetryLog::open(&log_path).map_err(|e| {
-        CliError::Input(format!(
-            "{}: cannot open the telemetry log: {e}.",
-            log_path.display()
-        ))
-    })?;
-
-    // The device: a port as given, or a child process on a pty.
-    let mut process = if args.port.is_some() {
-        None
-    } else if args.qemu {
-        Some(DeviceProcess::qemu(&firmware).map_err(|e| CliError::Input(format!("{e}."))))
-    } else {
-        Some(
-            DeviceProcess::firmware_sim(&sim_options)
-                .map_err(|e| CliError::Device(format!("{e}."))),
-        )
-    }
-    .transpose()?;
-    let port_name = match (&args.port, &process) {
-        (Some(port), _) => port.clone(),
-        (None, Some(process)) => process.pty().to_string(),
-        (None, None) => return Err(CliError::Device("no device to replay to.".into())),
+    let link = args.link_options()?;
+    let sim = args.sim_options()?;
+    let device = match (&args.port, args.qemu) {
+        (Some(port), _) => Device::Port(port.clone()),
+        (None, true) => Device::Qemu(
+            args.firmware
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(DEFAULT_FIRMWARE)),
+        ),
+        (None, false) => Device::FirmwareSim,
     };
-    let kind = match (&args.port, args.qemu) {
-        (Some(_), _) => "port",
-        (None, true) => "qemu",
-        (None, false) => "firmware-sim",
+    let setup = Setup {
+        file: args.file.clone(),
+        columns: args.columns.clone(),
+        options,
+        link,
+        sim,
+        device,
+        elf: args.elf.clone(),
+        log: args.log_path(),
+        progress: std::io::stderr().is_terminal() && !args.json,
     };
-    let session = serde_json::json!({
-        "tool": "lssi replay",
-        "version": env!("CARGO_PKG_VERSION"),
-        "input": args.file.display().to_string(),
-        "device": kind,
-        "port": port_name,
-        "baud": args.baud,
-        "faults": {"flip_rate": args.flip_rate, "drop_rate": args.drop_rate, "burst": args.burst, "seed": args.seed},
-        "omega_estimated": estimated,
-        "samples": recording.len(),
-        "config": wire,
-    });
-    log.append(RecordKind::Session, session.to_string().as_bytes())
-        .map_err(|e| log_write_error(&log_path, e))?;
-
-    let port = serialport::new(&port_name, args.baud)
-        .timeout(Duration::from_millis(50))
-        .open()
-        .map_err(|e| CliError::Device(format!("{port_name}: cannot open the serial port: {e}.")))?;
-    let reader = port.try_clone().map_err(|e| {
-        CliError::Device(format!(
-            "{port_name}: cannot open the serial port twice: {e}."
-        ))
-    })?;
-
-    let bar = if std::io::stderr().is_terminal() && !args.json {
-        ProgressBar::with_draw_target(Some(recording.len() as u64), ProgressDrawTarget::stderr())
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} samples acked  {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut watcher = Watcher {
-        bar,
-        lines: DefmtLines::new(tables.as_ref()),
-        baud: args.baud,
-    };
-    let qemu_stdout = process.as_mut().and_then(DeviceProcess::take_stdout);
-    let result = {
-        let mut link = Link::new(
-            port_name.clone(),
-            Box::new(reader),
-            Box::new(port),
-            &mut log,
-            &mut watcher,
-            link_options,
-        );
-        if let Some(stdout) = qemu_stdout {
-            link.attach_defmt(Box::new(stdout));
-        }
-        let result = replay_over(&mut link, &recording, &config, estimated);
-        if let Err(error) = &result {
-            let _ = link.note(&format!("replay stopped: {error}"));
-        }
-        result
-    };
-    watcher.bar.finish_and_clear();
-    if let Some(process) = process {
-        // firmware-sim exits once the port is closed; QEMU never does.
-        let grace = Duration::from_millis(if args.qemu { 0 } else { 2000 });
-        for line in process.finish(grace) {
-            let _ = log.note(&format!("{kind}: {line}"));
-        }
-    }
-    let _ = log.sync();
-    result.map_err(replay_error)
+    session::replay(&setup)
 }
 
 fn print_report(report: &ReplayReport, json: bool) {
@@ -397,21 +205,6 @@ fn print_report(report: &ReplayReport, json: bool) {
     } else {
         crate::out!("{}", identify::render(&report.report));
         crate::out!("{}", render_link(&report.link));
-    }
-}
-
-fn log_write_error(path: &Path, error: std::io::Error) -> CliError {
-    CliError::Write {
-        path: path.to_path_buf(),
-        source: error,
-    }
-}
-
-/// A replay failure as the command's error.
-pub fn replay_error(error: ReplayError) -> CliError {
-    match error {
-        ReplayError::Link(error) => CliError::Device(format!("{error}.")),
-        ReplayError::Input(sentence) => CliError::Input(sentence),
     }
 }
 

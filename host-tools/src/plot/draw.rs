@@ -1,7 +1,6 @@
 //! The figures themselves: each is drawn once for a PNG and once for an SVG through the same
 //! generic code, with one shared style (sizes in pixels, colours, number format).
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -13,8 +12,8 @@ use plotters::style::FontStyle;
 use super::Written;
 use super::data::{History, Neighbours, Reconstruction, envelope};
 use crate::identify::Report;
+use crate::identify::simulate::{SimModel, nrmse, simulate};
 use crate::recording::Recording;
-use crate::simulate::{SimModel, nrmse, simulate};
 
 /// The font every figure uses (DejaVu Sans; licence beside it).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -33,24 +32,15 @@ const SELECTED: RGBColor = RGBColor(204, 0, 0);
 const GOOD: RGBColor = RGBColor(0, 140, 70);
 
 /// Why a figure was not written.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PlotError {
     /// The data do not support this figure (a sentence saying why).
+    #[error("{0}")]
     Skipped(String),
     /// Drawing or writing failed.
+    #[error("cannot draw the figure: {0}.")]
     Draw(String),
 }
-
-impl fmt::Display for PlotError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            PlotError::Skipped(why) => f.write_str(why),
-            PlotError::Draw(why) => write!(f, "cannot draw the figure: {why}."),
-        }
-    }
-}
-
-impl std::error::Error for PlotError {}
 
 impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for PlotError {
     fn from(e: DrawingAreaErrorKind<E>) -> Self {

@@ -51,8 +51,7 @@ pub fn plot_all(
         source: e,
     })?;
     draw::register_font().map_err(|e| CliError::Identify(e.to_string()))?;
-    let (config, _) =
-        crate::identify::configure(recording, options).map_err(|e| CliError::Identify(e.0))?;
+    let (config, _) = crate::identify::configure(recording, options)?;
     let stem = recording
         .path
         .file_stem()

@@ -7,7 +7,7 @@
 //! significant digits and no trailing zeros, and `cos(t)` when W is 1.
 //!
 //! ```
-//! use lssi_host::terms::{Harmonic, harmonic_name, monomial_name};
+//! use lssi_host::identify::terms::{Harmonic, harmonic_name, monomial_name};
 //!
 //! assert_eq!(monomial_name(2, 1), "x^2*v");
 //! assert_eq!(monomial_name(0, 0), "1");

@@ -9,7 +9,7 @@
 //! scatter.
 //!
 //! ```
-//! use lssi_host::noise::{NoiseKind, add_noise};
+//! use lssi_host::synth::noise::{NoiseKind, add_noise};
 //! use rand::SeedableRng;
 //!
 //! let clean = vec![1.0; 1000];

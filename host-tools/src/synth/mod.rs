@@ -2,12 +2,12 @@
 //! [`paper`] is the paper's eq. (17), [`eveh`] its harvester, eq. (19).
 //!
 //! Each generator is a pure function from options to [`Generated`] (no file I/O), so a benchmark
-//! can generate in memory and the `lssi gen` command only writes what it gets. The trajectories
-//! come from [`crate::ode`], the noise from [`crate::noise`], and the answer key is a
-//! [`Truth`].
+//! can generate in memory and the `lssi gen` command only writes what it gets ([`files`]). The trajectories
+//! come from [`ode`] (fixed-step RK4), the noise from [`noise`] (eq. 16), and the answer key
+//! is a [`Truth`] ([`truth`]), which `lssi bench` and `lssi identify --track` read back.
 //!
 //! ```
-//! use lssi_host::generators::paper::{PaperOptions, generate_paper};
+//! use lssi_host::synth::paper::{PaperOptions, generate_paper};
 //!
 //! let options = PaperOptions { t_end: 1.0, dt: 0.01, ..PaperOptions::default() };
 //! options.validate().unwrap();
@@ -17,15 +17,18 @@
 //! ```
 
 pub mod eveh;
+pub mod files;
+pub mod noise;
+pub mod ode;
 pub mod paper;
+pub mod truth;
 
-use std::fmt;
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
 use crate::recording::{ColumnNames, Recording};
-use crate::truth::Truth;
+use crate::synth::truth::Truth;
 
 /// The most samples a generator produces; past this a CSV runs to gigabytes.
 pub const MAX_SAMPLES: usize = 10_000_000;
@@ -97,7 +100,8 @@ impl Generated {
 }
 
 /// A generator option that cannot be used; names the field at fault.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field} = {value} cannot be used: it must be {requirement}.")]
 pub struct OptionError {
     /// The option's field name, e.g. `dt`.
     pub field: &'static str,
@@ -106,18 +110,6 @@ pub struct OptionError {
     /// What the value must be, as the end of a sentence: "positive and finite".
     pub requirement: &'static str,
 }
-
-impl fmt::Display for OptionError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{} = {} cannot be used: it must be {}.",
-            self.field, self.value, self.requirement
-        )
-    }
-}
-
-impl std::error::Error for OptionError {}
 
 /// Checks that `value` is finite, naming `field` if not.
 pub(crate) fn require_finite(field: &'static str, value: f64) -> Result<(), OptionError> {

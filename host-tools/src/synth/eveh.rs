@@ -53,7 +53,7 @@
 //!   lists the coefficients before; the coefficients after are in its `params.drift_after`.
 //!
 //! ```
-//! use lssi_host::generators::eveh::{EvehOptions, Wells, generate_eveh};
+//! use lssi_host::synth::eveh::{EvehOptions, Wells, generate_eveh};
 //!
 //! let options = EvehOptions { t_end: 1.0, wells: Wells::Monostable, ..EvehOptions::default() };
 //! options.validate().unwrap();
@@ -70,11 +70,11 @@ use serde::{Deserialize, Serialize};
 use super::{
     Generated, Observe, OptionError, require_finite, require_positive, sample_times, validate_grid,
 };
-use crate::noise::{NoiseKind, add_noise, stats};
-use crate::ode::{State, integrate_at};
+use crate::identify::terms::{Harmonic, harmonic_name, monomial_name};
 use crate::recording::{ColumnNames, Recording};
-use crate::terms::{Harmonic, harmonic_name, monomial_name};
-use crate::truth::{NoiseTruth, Truth, TruthTerm};
+use crate::synth::noise::{NoiseKind, add_noise, stats};
+use crate::synth::ode::{State, integrate_at};
+use crate::synth::truth::{NoiseTruth, Truth, TruthTerm};
 
 /// The name of this model in truth files.
 pub const MODEL: &str = "eveh-eq19";

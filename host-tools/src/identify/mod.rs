@@ -5,6 +5,16 @@
 //! ([`lssi_core::tuning::choose_window`]) and, without `--omega`, the excitation frequency
 //! (the peak of the spectrum of what a polynomial model of the same library cannot explain).
 //! The identifier then runs sample by sample and the model at the end of the file is reported.
+//!
+//! Around it: [`batch`] (many recordings in parallel), [`track`] (the model over time and the settle time after a change), [`simulate`]
+//! (a free run of an identified model, its NRMSE), [`refine`] (output-error refinement of the
+//! selected terms) and [`terms`] (how library terms are named across the project).
+
+pub mod batch;
+pub mod refine;
+pub mod simulate;
+pub mod terms;
+pub mod track;
 
 use lssi_core::derivative::Taps;
 use lssi_core::factor::Factor;
@@ -56,17 +66,10 @@ impl Default for Options {
     }
 }
 
-/// Why a recording cannot be identified.
-#[derive(Debug, Clone, PartialEq)]
+/// Why a recording cannot be identified: one sentence naming the file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
 pub struct IdentifyError(pub String);
-
-impl std::fmt::Display for IdentifyError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for IdentifyError {}
 
 /// One term of the selected model.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -138,7 +141,7 @@ pub struct Report {
     /// `f32` or `f64`.
     pub precision: String,
     /// The selected model as library terms and coefficients (physical units, inactive terms
-    /// left out), for [`crate::simulate`]; not part of the JSON.
+    /// left out), for [`crate::identify::simulate`]; not part of the JSON.
     #[serde(skip)]
     pub model: Vec<(Term, f64)>,
     /// One sentence per rejected sample, in order (which sample and why); not part of the
@@ -395,6 +398,20 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
                 "{file}: x'' has no spectral peak to take for the excitation; give --omega."
             ))
         })
+}
+
+/// Configures and runs the identifier on a recording, in f32 or f64 as `options` say: what
+/// `lssi identify` reports.
+pub fn identify_recording(
+    recording: &Recording,
+    options: &Options,
+) -> Result<Report, IdentifyError> {
+    let (config, estimated) = configure(recording, options)?;
+    if options.f32 {
+        run::<f32>(recording, config, estimated)
+    } else {
+        run::<f64>(recording, config, estimated)
+    }
 }
 
 /// Runs a recording through the identifier in precision `T`.

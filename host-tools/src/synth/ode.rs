@@ -8,7 +8,7 @@
 //! heuristics.
 //!
 //! ```
-//! use lssi_host::ode::{State, integrate_at};
+//! use lssi_host::synth::ode::{State, integrate_at};
 //!
 //! // x'' = -x from x = 1, v = 0 is cos(t).
 //! let times = [0.0, 0.5, 1.0];

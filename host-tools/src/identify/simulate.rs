@@ -13,7 +13,7 @@
 //!
 //! ```
 //! use lssi_core::Term;
-//! use lssi_host::simulate::{SimModel, nrmse, simulate};
+//! use lssi_host::identify::simulate::{SimModel, nrmse, simulate};
 //!
 //! // x'' = -x from x = 1, v = 0 is cos(t).
 //! let model = SimModel {
@@ -141,7 +141,7 @@ pub fn simulate(
             let f = |s: f64, x: f64, v: f64| model.acceleration(s, x, v, u_at(s));
             for k in 0..substeps {
                 let s = t0 + k as f64 * h;
-                let next = crate::ode::rk4_step(&f, s, crate::ode::State { x, v }, h);
+                let next = crate::synth::ode::rk4_step(&f, s, crate::synth::ode::State { x, v }, h);
                 x = next.x;
                 v = next.v;
             }

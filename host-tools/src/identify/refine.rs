@@ -29,7 +29,7 @@ use lssi_core::Term;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use crate::simulate::{SimModel, evaluate};
+use crate::identify::simulate::{SimModel, evaluate};
 
 /// Samples `[a, b)` of a recording.
 type Span = (usize, usize);
@@ -830,7 +830,7 @@ mod tests {
 
     fn duffing(truth: &SimModel, n: usize, dt: f64, noise: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
         let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let sim = crate::simulate::simulate(truth, &t, None, (0.5, 0.0), 8);
+        let sim = crate::identify::simulate::simulate(truth, &t, None, (0.5, 0.0), 8);
         let mut state = seed
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);

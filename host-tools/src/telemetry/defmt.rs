@@ -15,21 +15,14 @@ use defmt_decoder::{DecodeError, StreamDecoder, Table};
 pub const RAW_HINT: &str = "raw defmt bytes; give the firmware's ELF (--elf) to decode them";
 
 /// Why a firmware's defmt tables cannot be used.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{}: {reason}", path.display())]
 pub struct ElfError {
     /// The ELF file.
     pub path: PathBuf,
     /// Why, as the end of a sentence.
     pub reason: String,
 }
-
-impl fmt::Display for ElfError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path.display(), self.reason)
-    }
-}
-
-impl std::error::Error for ElfError {}
 
 /// The defmt tables of a firmware image.
 pub struct Tables {

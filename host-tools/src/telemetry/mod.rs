@@ -21,7 +21,9 @@
 //! file. [`read_log`] returns every whole record and says whether a partial tail was skipped;
 //! [`TelemetryLog::open`] cuts such a tail off (and notes it) before appending a new session.
 //! Frames are stored raw, CRC errors included, and decoded only when read: a log keeps what the
-//! wire carried even if a later protocol reads it differently.
+//! wire carried even if a later protocol reads it differently. The device's own log lines come
+//! as defmt bytes, which [`defmt`] decodes with the tables in the firmware's ELF; [`decode`] turns records
+//! into what `lssi log` prints.
 //!
 //! ```
 //! use lssi_host::telemetry::{read_log, RecordKind, TelemetryLog};
@@ -37,7 +39,9 @@
 //! assert!(contents.partial_tail.is_none());
 //! ```
 
-use std::fmt;
+pub mod decode;
+pub mod defmt;
+
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -142,30 +146,19 @@ pub struct Skipped {
 }
 
 /// Why a log cannot be read.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LogError {
     /// The file does not start with [`MAGIC`].
+    #[error("the file is not an lssi telemetry log (it does not start with LSSITLM)")]
     NotALog,
     /// The file starts with the magic of another format version.
+    #[error(
+        "the file is a telemetry log of format version {theirs}, but this build reads version {ours}",
+        theirs = .0,
+        ours = MAGIC[7]
+    )]
     Version(u8),
 }
-
-impl fmt::Display for LogError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LogError::NotALog => f.write_str(
-                "the file is not an lssi telemetry log (it does not start with LSSITLM)",
-            ),
-            LogError::Version(v) => write!(
-                f,
-                "the file is a telemetry log of format version {v}, but this build reads version {}",
-                MAGIC[7]
-            ),
-        }
-    }
-}
-
-impl std::error::Error for LogError {}
 
 /// Reads every whole record of a log held in memory.
 ///

@@ -9,16 +9,14 @@
 //! back bit for bit ([`lssi_device::wire::model_from_snapshot`]) and goes through
 //! [`identify::report`], so the terms and coefficients are those of `lssi identify --f32`.
 
-use std::fmt;
-
 use lssi_core::Config;
 use lssi_device::wire::{config_to_wire, fits, model_from_snapshot};
 use lssi_proto::{ModelSnapshot, NakReason, WireConfig, WireSample};
 use serde::Serialize;
 
 use crate::identify::{self, Report, TERM_CAPACITY};
-use crate::link::{Link, LinkError, LinkStats};
 use crate::recording::Recording;
+use crate::serial::link::{Link, LinkError, LinkStats};
 
 /// What `lssi replay --json` prints: `lssi identify --json`'s object plus `"link"`.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -31,29 +29,14 @@ pub struct ReplayReport {
 }
 
 /// Why a replay failed.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The link or the device failed (exit 1).
-    Link(LinkError),
+    #[error("{0}.")]
+    Link(#[from] LinkError),
     /// The recording or the flags ask for something the device cannot do (exit 2).
+    #[error("{0}")]
     Input(String),
-}
-
-impl fmt::Display for ReplayError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ReplayError::Link(error) => write!(f, "{error}."),
-            ReplayError::Input(sentence) => f.write_str(sentence),
-        }
-    }
-}
-
-impl std::error::Error for ReplayError {}
-
-impl From<LinkError> for ReplayError {
-    fn from(error: LinkError) -> Self {
-        ReplayError::Link(error)
-    }
 }
 
 /// The samples as they cross the link: `t` exact, the channels rounded to f32.

@@ -7,8 +7,8 @@
 //! x: −ω₀², v: −εβ₁, x²: −εα₁, x³: −εα₂, x²v: −εβ₂, cos(Ω₀t): εF₀.
 //!
 //! ```
-//! use lssi_host::generators::paper::{PaperOptions, generate_paper};
-//! use lssi_host::noise::NoiseKind;
+//! use lssi_host::synth::paper::{PaperOptions, generate_paper};
+//! use lssi_host::synth::noise::NoiseKind;
 //!
 //! let options = PaperOptions {
 //!     epsilon: 0.5,
@@ -29,10 +29,10 @@ use serde::{Deserialize, Serialize};
 use super::{
     Generated, Observe, OptionError, require_finite, require_positive, sample_times, validate_grid,
 };
-use crate::noise::{NoiseKind, add_noise};
-use crate::ode::{State, integrate_at};
-use crate::terms::{Harmonic, harmonic_name, monomial_name};
-use crate::truth::{NoiseTruth, Truth, TruthTerm};
+use crate::identify::terms::{Harmonic, harmonic_name, monomial_name};
+use crate::synth::noise::{NoiseKind, add_noise};
+use crate::synth::ode::{State, integrate_at};
+use crate::synth::truth::{NoiseTruth, Truth, TruthTerm};
 
 /// The name of this model in truth files.
 pub const MODEL: &str = "paper-eq17";

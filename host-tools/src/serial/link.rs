@@ -169,10 +169,15 @@ pub struct Health {
 }
 
 /// Why the link failed; each displays as one sentence naming the port.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LinkError {
     /// The port closed or failed under us (the device or its simulator went away).
+    #[error(
+        "{port}: the link closed{} after the device had acknowledged {acked} samples; \
+         the device (or its simulator) went away",
+        parenthesized(.detail)
+    )]
     Closed {
         /// The port.
         port: String,
@@ -182,6 +187,11 @@ pub enum LinkError {
         acked: u64,
     },
     /// The device sent nothing for too long.
+    #[error(
+        "{port}: the device sent nothing for {:.1} s while the host waited for {waiting_for}; \
+         is it running the lssi firmware at this baud rate?",
+        .waited.as_secs_f64()
+    )]
     Silent {
         /// The port.
         port: String,
@@ -191,6 +201,7 @@ pub enum LinkError {
         waited: Duration,
     },
     /// The device refused a command.
+    #[error("{port}: the device refused {command} ({})", nak_text(*.reason))]
     Refused {
         /// The port.
         port: String,
@@ -200,6 +211,11 @@ pub enum LinkError {
         reason: NakReason,
     },
     /// The device speaks another protocol version.
+    #[error(
+        "{port}: the device speaks lssi protocol version {theirs}, but this build speaks \
+         version {}; flash a matching firmware",
+        PROTOCOL_VERSION
+    )]
     Version {
         /// The port.
         port: String,
@@ -207,6 +223,10 @@ pub enum LinkError {
         theirs: u16,
     },
     /// The device applied more samples than were sent: it broke the exactly-once contract.
+    #[error(
+        "{port}: the device counted {counted} samples but {sent} were sent, so it applied \
+         some twice"
+    )]
     Overcount {
         /// The port.
         port: String,
@@ -216,6 +236,7 @@ pub enum LinkError {
         counted: u64,
     },
     /// The telemetry log could not be written.
+    #[error("{}: cannot append to the telemetry log: {source}", .path.display())]
     Log {
         /// The log file.
         path: PathBuf,
@@ -224,66 +245,14 @@ pub enum LinkError {
     },
 }
 
-impl fmt::Display for LinkError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LinkError::Closed {
-                port,
-                detail,
-                acked,
-            } => write!(
-                f,
-                "{port}: the link closed{} after the device had acknowledged {acked} samples; \
-                 the device (or its simulator) went away",
-                if detail.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({detail})")
-                }
-            ),
-            LinkError::Silent {
-                port,
-                waiting_for,
-                waited,
-            } => write!(
-                f,
-                "{port}: the device sent nothing for {:.1} s while the host waited for {waiting_for}; \
-                 is it running the lssi firmware at this baud rate?",
-                waited.as_secs_f64()
-            ),
-            LinkError::Refused {
-                port,
-                command,
-                reason,
-            } => write!(
-                f,
-                "{port}: the device refused {command} ({})",
-                nak_text(*reason)
-            ),
-            LinkError::Version { port, theirs } => write!(
-                f,
-                "{port}: the device speaks lssi protocol version {theirs}, but this build speaks \
-                 version {PROTOCOL_VERSION}; flash a matching firmware"
-            ),
-            LinkError::Overcount {
-                port,
-                sent,
-                counted,
-            } => write!(
-                f,
-                "{port}: the device counted {counted} samples but {sent} were sent, so it applied \
-                 some twice"
-            ),
-            LinkError::Log { path, source } => write!(
-                f,
-                "{}: cannot append to the telemetry log: {source}",
-                path.display()
-            ),
-        }
+/// ` (detail)`, or nothing for no detail.
+fn parenthesized(detail: &str) -> String {
+    if detail.is_empty() {
+        String::new()
+    } else {
+        format!(" ({detail})")
     }
 }
-
-impl std::error::Error for LinkError {}
 
 /// A nak reason as words.
 pub fn nak_text(reason: NakReason) -> &'static str {

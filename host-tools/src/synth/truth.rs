@@ -1,11 +1,11 @@
 //! The truth file a generator writes beside its CSV: the equation the data obey, so that an
-//! identification can be scored against it.
+//! identification can be scored against it ([`score`]).
 //!
 //! Coefficients are those of the target solved for explicitly, x'' = Σ ξᵢ θᵢ(x, x', t), with the
-//! terms named by [`crate::terms`]; terms whose coefficient is exactly zero are left out.
+//! terms named by [`crate::identify::terms`]; terms whose coefficient is exactly zero are left out.
 //!
 //! ```
-//! use lssi_host::truth::Truth;
+//! use lssi_host::synth::truth::Truth;
 //!
 //! let json = r#"{"model": "paper-eq17", "target": "x''", "omega": 2.0,
 //!     "terms": [{"term": "x", "coef": -1.0}, {"term": "cos(2t)", "coef": 5.0}],
@@ -17,7 +17,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::noise::NoiseKind;
+use crate::identify::Report;
+use crate::synth::noise::NoiseKind;
 
 /// The known equation behind a generated recording, and the noise that was added to it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -69,4 +70,23 @@ pub struct NoiseTruth {
     /// Root mean square of the noise added to v, when v was observed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_v: Option<f64>,
+}
+
+/// Per-coefficient errors (%) (100 for a missed term) and the number of spurious terms.
+pub fn score(report: &Report, truth: &[(&str, f64)]) -> (Vec<f64>, usize) {
+    let errors = truth
+        .iter()
+        .map(
+            |(name, c)| match report.terms.iter().find(|t| t.term == *name) {
+                Some(t) => ((t.coef - c) / c).abs() * 100.0,
+                None => 100.0,
+            },
+        )
+        .collect();
+    let spurious = report
+        .terms
+        .iter()
+        .filter(|t| !truth.iter().any(|(n, _)| *n == t.term))
+        .count();
+    (errors, spurious)
 }

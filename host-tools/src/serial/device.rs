@@ -9,12 +9,13 @@
 //! a `firmware-sim` next to the running executable (or one directory up, for a test binary
 //! in `target/*/deps`), then the `PATH`. `cargo build --workspace` puts it next to `lssi`.
 
-use std::fmt;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
+
+use crate::serial::qemu;
 
 /// The environment variable that names the `firmware-sim` executable to run.
 pub const SIM_ENV: &str = "LSSI_FIRMWARE_SIM";
@@ -40,16 +41,9 @@ pub struct SimOptions {
 }
 
 /// Why a device process could not be started.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
 pub struct StartError(pub String);
-
-impl fmt::Display for StartError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for StartError {}
 
 /// A child process that plays the device, with the pty it serves.
 #[derive(Debug)]
@@ -147,17 +141,14 @@ impl DeviceProcess {
                 firmware.display()
             )));
         }
-        let program = find_on_path("qemu-system-arm").ok_or_else(|| {
+        let program = qemu::find().ok_or_else(|| {
             StartError(
                 "qemu-system-arm is not installed (apt-get install qemu-system-arm), so --qemu \
                  cannot run the firmware"
                     .into(),
             )
         })?;
-        let mut child = Command::new(&program)
-            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic"])
-            .args(["-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"])
+        let mut child = qemu::command(&program)
             .args(["-icount", "shift=0", "-serial", "pty", "-kernel"])
             .arg(firmware)
             .stdin(Stdio::null())

@@ -15,7 +15,7 @@
 //!
 //! ```
 //! use lssi_core::Term;
-//! use lssi_host::track::{Snapshot, Track, settle};
+//! use lssi_host::identify::track::{Snapshot, Track, settle};
 //!
 //! let x = Term::Monomial { px: 1, pv: 0 };
 //! let track = Track {
@@ -34,10 +34,10 @@
 use lssi_core::{Config, Identifier, Real, Sample, Term};
 use serde::Serialize;
 
-use crate::generators::eveh::round_digits;
 use crate::identify::{IdentifyError, TERM_CAPACITY, WINDOW_CAPACITY};
 use crate::recording::Recording;
-use crate::truth::Truth;
+use crate::synth::eveh::round_digits;
+use crate::synth::truth::Truth;
 
 /// How to track.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,6 +83,25 @@ pub struct Settle {
     pub settle_time: Option<f64>,
     /// The relative tolerance.
     pub tolerance: f64,
+}
+
+impl Settle {
+    /// The settle time as a sentence (`lssi identify --track` prints it on stderr), against
+    /// `reference` (what the coefficients settle to, in words).
+    pub fn sentence(&self, reference: &str) -> String {
+        let s = self;
+        let tol = 100.0 * s.tolerance;
+        match (s.settled_at, s.settle_time) {
+            (Some(at), Some(time)) => format!(
+                "settled {time:.3} s after the change at {} s (from t = {at} s every coefficient stays within {tol} % of {reference}).",
+                s.change_at
+            ),
+            _ => format!(
+                "not settled: after the change at {} s the coefficients never stay within {tol} % of {reference} to the end of the record.",
+                s.change_at
+            ),
+        }
+    }
 }
 
 /// Streams `recording` through the identifier configured by `config`, screening every
@@ -187,7 +206,7 @@ pub fn reference_from_truth(
     track: &Track,
 ) -> Result<(Vec<f64>, Option<f64>), String> {
     let drift = truth.params.get("drift_after").filter(|d| !d.is_null());
-    let after: Option<Vec<crate::truth::TruthTerm>> = drift
+    let after: Option<Vec<crate::synth::truth::TruthTerm>> = drift
         .and_then(|d| d.get("terms_after"))
         .and_then(|v| serde_json::from_value(v.clone()).ok());
     let change_at = drift.and_then(|d| d.get("at")).and_then(|v| v.as_f64());

@@ -1,0 +1,222 @@
+//! One `lssi replay` session: the device started (a port as given, `firmware-sim` or QEMU on a
+//! pty), the telemetry log opened, the recording streamed over the [`Link`] with
+//! [`replay_over`], and the device process stopped, its last words noted in the log.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lssi_proto::ModelSnapshot;
+
+use crate::error::CliError;
+use crate::identify::{self, Options};
+use crate::recording::{ColumnNames, Recording};
+use crate::serial::device::{DeviceProcess, SimOptions};
+use crate::serial::link::{Link, LinkOptions, LinkStats, Observer};
+use crate::serial::replay::{ReplayReport, replay_over, wire_config};
+use crate::telemetry::defmt::{DefmtLines, Tables};
+use crate::telemetry::{RecordKind, TelemetryLog};
+
+/// Which device the recording goes to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Device {
+    /// A serial port with a device on it.
+    Port(String),
+    /// This firmware image, run under QEMU (mps2-an386) on a pty.
+    Qemu(PathBuf),
+    /// `firmware-sim`, started on a pty with the session's [`SimOptions`].
+    FirmwareSim,
+}
+
+/// Everything a replay session needs, checked.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The recording (CSV).
+    pub file: PathBuf,
+    /// Which header names hold which quantity.
+    pub columns: ColumnNames,
+    /// The identifier options (`lssi identify --f32`'s).
+    pub options: Options,
+    /// The link's pacing.
+    pub link: LinkOptions,
+    /// The baud rate, and firmware-sim's faults (recorded in the log whatever the device).
+    pub sim: SimOptions,
+    /// The device.
+    pub device: Device,
+    /// The firmware's ELF, to decode its defmt log lines (with QEMU: default, the image run).
+    pub elf: Option<PathBuf>,
+    /// The telemetry log to append to.
+    pub log: PathBuf,
+    /// Show a progress bar on stderr.
+    pub progress: bool,
+}
+
+/// Shows progress on a terminal and prints the device's log lines.
+struct Watcher {
+    bar: ProgressBar,
+    lines: DefmtLines,
+    baud: u32,
+}
+
+impl Observer for Watcher {
+    fn progress(&mut self, stats: &LinkStats) {
+        self.bar.set_position(stats.samples_acked);
+        let rate = stats.samples_per_second();
+        let bound = stats.bound(self.baud);
+        self.bar.set_message(format!(
+            "{} frames sent, {} retransmitted, {:.0} samples/s ({:.0} % of the {} baud bound)",
+            stats.frames_sent,
+            stats.retransmits,
+            rate,
+            if bound > 0.0 {
+                100.0 * rate / bound
+            } else {
+                0.0
+            },
+            self.baud
+        ));
+    }
+
+    fn device_log(&mut self, bytes: &[u8]) {
+        for line in self.lines.push(bytes) {
+            self.bar.suspend(|| eprintln!("device: {line}"));
+        }
+    }
+
+    fn model(&mut self, snapshot: &ModelSnapshot) {
+        self.bar.set_message(format!(
+            "model at {} samples ({} terms active)",
+            snapshot.samples,
+            snapshot.coefficients.iter().filter(|c| **c != 0.0).count()
+        ));
+    }
+}
+
+/// Replays as `setup` says and returns the report (what `lssi replay` prints).
+pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
+    let qemu = matches!(setup.device, Device::Qemu(_));
+    let elf = setup.elf.clone().or_else(|| match &setup.device {
+        Device::Qemu(firmware) => Some(firmware.clone()),
+        _ => None,
+    });
+    let tables = match &elf {
+        Some(path) if !qemu || path.is_file() => {
+            Some(Tables::load(path).map_err(|e| CliError::Input(format!("{e}."))))
+        }
+        _ => None,
+    }
+    .transpose()?;
+
+    let recording = Recording::read(&setup.file, &setup.columns)?;
+    let (config, estimated) = identify::configure(&recording, &setup.options)?;
+    let wire = wire_config(&recording, &config)?;
+
+    let log_path = &setup.log;
+    let mut log = TelemetryLog::open(log_path).map_err(|e| {
+        CliError::Input(format!(
+            "{}: cannot open the telemetry log: {e}.",
+            log_path.display()
+        ))
+    })?;
+
+    // The device: a port as given, or a child process on a pty.
+    let mut process = match &setup.device {
+        Device::Port(_) => None,
+        Device::Qemu(firmware) => {
+            Some(DeviceProcess::qemu(firmware).map_err(|e| CliError::Input(format!("{e}."))))
+        }
+        Device::FirmwareSim => Some(
+            DeviceProcess::firmware_sim(&setup.sim).map_err(|e| CliError::Device(format!("{e}."))),
+        ),
+    }
+    .transpose()?;
+    let port_name = match (&setup.device, &process) {
+        (Device::Port(port), _) => port.clone(),
+        (_, Some(process)) => process.pty().to_string(),
+        (_, None) => return Err(CliError::Device("no device to replay to.".into())),
+    };
+    let kind = match &setup.device {
+        Device::Port(_) => "port",
+        Device::Qemu(_) => "qemu",
+        Device::FirmwareSim => "firmware-sim",
+    };
+    let session = serde_json::json!({
+        "tool": "lssi replay",
+        "version": env!("CARGO_PKG_VERSION"),
+        "input": setup.file.display().to_string(),
+        "device": kind,
+        "port": port_name,
+        "baud": setup.sim.baud,
+        "faults": {"flip_rate": setup.sim.flip_rate, "drop_rate": setup.sim.drop_rate, "burst": setup.sim.burst, "seed": setup.sim.seed},
+        "omega_estimated": estimated,
+        "samples": recording.len(),
+        "config": wire,
+    });
+    log.append(RecordKind::Session, session.to_string().as_bytes())
+        .map_err(|e| log_write_error(log_path, e))?;
+
+    let port = serialport::new(&port_name, setup.sim.baud)
+        .timeout(Duration::from_millis(50))
+        .open()
+        .map_err(|e| CliError::Device(format!("{port_name}: cannot open the serial port: {e}.")))?;
+    let reader = port.try_clone().map_err(|e| {
+        CliError::Device(format!(
+            "{port_name}: cannot open the serial port twice: {e}."
+        ))
+    })?;
+
+    let bar = if setup.progress {
+        ProgressBar::with_draw_target(Some(recording.len() as u64), ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} samples acked  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut watcher = Watcher {
+        bar,
+        lines: DefmtLines::new(tables.as_ref()),
+        baud: setup.sim.baud,
+    };
+    let qemu_stdout = process.as_mut().and_then(DeviceProcess::take_stdout);
+    let result = {
+        let mut link = Link::new(
+            port_name.clone(),
+            Box::new(reader),
+            Box::new(port),
+            &mut log,
+            &mut watcher,
+            setup.link,
+        );
+        if let Some(stdout) = qemu_stdout {
+            link.attach_defmt(Box::new(stdout));
+        }
+        let result = replay_over(&mut link, &recording, &config, estimated);
+        if let Err(error) = &result {
+            let _ = link.note(&format!("replay stopped: {error}"));
+        }
+        result
+    };
+    watcher.bar.finish_and_clear();
+    if let Some(process) = process {
+        // firmware-sim exits once the port is closed; QEMU never does.
+        let grace = Duration::from_millis(if matches!(setup.device, Device::Qemu(_)) {
+            0
+        } else {
+            2000
+        });
+        for line in process.finish(grace) {
+            let _ = log.note(&format!("{kind}: {line}"));
+        }
+    }
+    let _ = log.sync();
+    result.map_err(CliError::from)
+}
+
+fn log_write_error(path: &Path, error: std::io::Error) -> CliError {
+    CliError::Write {
+        path: path.to_path_buf(),
+        source: error,
+    }
+}
