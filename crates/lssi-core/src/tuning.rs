@@ -290,69 +290,97 @@ fn choose_capped<T: Real, const W: usize>(
             if len < p + 2 + 3 {
                 continue;
             }
-            let (Ok(taps), Ok(reference)) = (
-                Taps::<f64, W>::design(len, p, sample_period),
-                Taps::<f64, W>::design(len, p + 2, sample_period),
-            ) else {
-                continue;
-            };
-            let (h, r) = (taps.taps(order), reference.taps(order));
-            let gain: f64 = h.iter().map(|v| v * v).sum();
-            let diff_gain: f64 = h.iter().zip(r).map(|(a, b)| (a - b) * (a - b)).sum();
-            // With x only, x̂ and v̂ come from the same samples through h₀ and h₁.
-            let (h0, h1) = (taps.taps(0), taps.taps(1));
-            let positions = n - len + 1;
-            let step = (positions / POINTS).max(1);
-            let (mut disagreement, mut power, mut count) = (0.0, 0.0, 0usize);
-            let (mut power_x, mut power_v) = (0.0, 0.0);
-            let mut start = 0;
-            while start < positions {
-                let window = &source[start..start + len];
-                let (mut a, mut b) = (0.0, 0.0);
-                for ((s, hv), rv) in window.iter().zip(h).zip(r) {
-                    let s = s.to_f64();
-                    a += hv * s;
-                    b += rv * s;
-                }
-                if order == 2 {
-                    let (mut x, mut v) = (0.0, 0.0);
-                    for ((s, p0), p1) in window.iter().zip(h0).zip(h1) {
-                        let s = s.to_f64();
-                        x += p0 * s;
-                        v += p1 * s;
-                    }
-                    power_x += x * x;
-                    power_v += v * v;
-                }
-                disagreement += (a - b) * (a - b);
-                power += a * a;
-                count += 1;
-                start += step;
+            if let Some(m) = measure::<T, W>(source, len, p, order, sample_period, sigma2) {
+                measured[wi][pi] = m;
             }
-            let count = count.max(1) as f64;
-            let power = power / count;
-            // Noise in a regressor does not average out: x̂'s, correlated with x̂'s through
-            // h₀·h₂, shifts the fit by about σ²h₀·h₂/rms(x̂) in units of x''; v̂'s variance
-            // σ²‖h₁‖² shrinks the v terms by that fraction of v̂'s power (at most all of x'').
-            let regressors = if order == 2 && power_x > 0.0 && power_v > 0.0 {
-                let xy: f64 = h0.iter().zip(h).map(|(a, b)| a * b).sum();
-                let vv: f64 = h1.iter().map(|a| a * a).sum();
-                let shift = sigma2 * xy / libm::sqrt(power_x / count);
-                let shrink = (sigma2 * vv / (power_v / count)).min(1.0);
-                shift * shift + shrink * shrink * power
-            } else {
-                0.0
-            };
-            measured[wi][pi] = Measured {
-                disagreement: disagreement / count,
-                noise: sigma2 * diff_gain,
-                variance: sigma2 * gain,
-                power,
-                regressors,
-                valid: true,
-            };
         }
     }
+    pick(&measured, n, n_memory, sigma2)
+}
+
+/// The disagreement of the window `len` at degree `p` with degree p + 2 over the signal,
+/// with its noise and variance parts and the regressors' noise; `None` if either window
+/// cannot be designed.
+fn measure<T: Real, const W: usize>(
+    source: &[T],
+    len: usize,
+    p: usize,
+    order: usize,
+    sample_period: f64,
+    sigma2: f64,
+) -> Option<Measured> {
+    let n = source.len();
+    let (Ok(taps), Ok(reference)) = (
+        Taps::<f64, W>::design(len, p, sample_period),
+        Taps::<f64, W>::design(len, p + 2, sample_period),
+    ) else {
+        return None;
+    };
+    let (h, r) = (taps.taps(order), reference.taps(order));
+    let gain: f64 = h.iter().map(|v| v * v).sum();
+    let diff_gain: f64 = h.iter().zip(r).map(|(a, b)| (a - b) * (a - b)).sum();
+    // With x only, x̂ and v̂ come from the same samples through h₀ and h₁.
+    let (h0, h1) = (taps.taps(0), taps.taps(1));
+    let positions = n - len + 1;
+    let step = (positions / POINTS).max(1);
+    let (mut disagreement, mut power, mut count) = (0.0, 0.0, 0usize);
+    let (mut power_x, mut power_v) = (0.0, 0.0);
+    let mut start = 0;
+    while start < positions {
+        let window = &source[start..start + len];
+        let (mut a, mut b) = (0.0, 0.0);
+        for ((s, hv), rv) in window.iter().zip(h).zip(r) {
+            let s = s.to_f64();
+            a += hv * s;
+            b += rv * s;
+        }
+        if order == 2 {
+            let (mut x, mut v) = (0.0, 0.0);
+            for ((s, p0), p1) in window.iter().zip(h0).zip(h1) {
+                let s = s.to_f64();
+                x += p0 * s;
+                v += p1 * s;
+            }
+            power_x += x * x;
+            power_v += v * v;
+        }
+        disagreement += (a - b) * (a - b);
+        power += a * a;
+        count += 1;
+        start += step;
+    }
+    let count = count.max(1) as f64;
+    let power = power / count;
+    // Noise in a regressor does not average out: x̂'s, correlated with x̂'s through
+    // h₀·h₂, shifts the fit by about σ²h₀·h₂/rms(x̂) in units of x''; v̂'s variance
+    // σ²‖h₁‖² shrinks the v terms by that fraction of v̂'s power (at most all of x'').
+    let regressors = if order == 2 && power_x > 0.0 && power_v > 0.0 {
+        let xy: f64 = h0.iter().zip(h).map(|(a, b)| a * b).sum();
+        let vv: f64 = h1.iter().map(|a| a * a).sum();
+        let shift = sigma2 * xy / libm::sqrt(power_x / count);
+        let shrink = (sigma2 * vv / (power_v / count)).min(1.0);
+        shift * shift + shrink * shrink * power
+    } else {
+        0.0
+    };
+    Some(Measured {
+        disagreement: disagreement / count,
+        noise: sigma2 * diff_gain,
+        variance: sigma2 * gain,
+        power,
+        regressors,
+        valid: true,
+    })
+}
+
+/// The window and degree of least estimated cost (bias² + regressor noise + variance over
+/// the memory of `n_memory` samples) among the measured ones, `n` samples long.
+fn pick(
+    measured: &[[Measured; DEGREES.len()]; WINDOWS.len()],
+    n: usize,
+    n_memory: usize,
+    sigma2: f64,
+) -> Option<WindowChoice> {
     let mut best: Option<(f64, WindowChoice)> = None;
     for (pi, &p) in DEGREES.iter().enumerate() {
         // The anchor: the shortest window whose bias stands out of the noise part by three

@@ -279,3 +279,103 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Channels, LibraryConfig, PolyFamily, Sample};
+
+    /// The forced Duffing oscillator with measured v, its x read by a sensor whose zero is
+    /// `offset` off: x'' = −400(x − c) − 2v − 4·10⁴(x − c)³ + 60 cos(15t).
+    fn identifier(offset: f64) -> Box<Identifier<f64, 128, 16, 3>> {
+        let config = Config {
+            sample_period: 1e-3,
+            window: 63,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: 1,
+                input: false,
+            },
+            omega: 15.0,
+            channels: Channels {
+                velocity: true,
+                input: false,
+            },
+            screening_period: 100_000,
+            offsets: true,
+            ..Config::default()
+        };
+        let mut id = Box::new(Identifier::new(config).expect("valid"));
+        for p in lssi_testkit::duffing(30_000) {
+            let sample = Sample {
+                t: p.t,
+                x: p.x + offset,
+                v: Some(p.v),
+                u: None,
+            };
+            id.push(sample).expect("clean");
+        }
+        id
+    }
+
+    fn support(id: &Identifier<f64, 128, 16, 3>, terms: &[Term]) -> u32 {
+        terms.iter().fold(0, |s, &t| {
+            s | 1u32 << id.library.index_of(t).expect("in the library")
+        })
+    }
+
+    #[test]
+    fn the_origin_search_finds_a_sensor_offset() {
+        let offset = 0.004;
+        let mut id = identifier(offset);
+        let mut w = Work::new(id.library.len());
+        id.prepare(0.0, 0.0, false, &mut w);
+        // The dense model's equilibria: the one nearest the data's middle is the offset.
+        let mut candidates: heapless::Vec<f64, 7> = heapless::Vec::new();
+        id.equilibria(&w.all, &mut w.m, &mut candidates);
+        assert!((candidates[0] - offset).abs() < 2e-4, "{candidates:?}");
+        // The true support, about the right origin, fits best there (golden section from a
+        // guess 1 mm off).
+        let truth = support(
+            &id,
+            &[
+                Term::Monomial { px: 1, pv: 0 },
+                Term::Monomial { px: 0, pv: 1 },
+                Term::Monomial { px: 3, pv: 0 },
+                Term::Cos(1),
+            ],
+        );
+        let found = id
+            .best_origin(0.0, 0.003, truth, &mut w)
+            .expect("inside the bracket");
+        assert!((found - offset).abs() < 2e-5, "{found}");
+        // Newton on the model with the terms a shift creates, from the recording's zero.
+        let shifted = truth | support(&id, &[Term::Constant, Term::Monomial { px: 2, pv: 0 }]);
+        let step = id
+            .refine_origin(0.0, 0.0, shifted, &mut w)
+            .expect("converges");
+        assert!((step - offset).abs() < 2e-5, "{step}");
+        // A support closed under shifts has no best origin.
+        assert!(id.best_origin(0.0, 0.0, shifted, &mut w).is_none());
+        // The screening puts the model about it, with the true terms only.
+        assert!(id.screen());
+        let model = id.model().expect("a model");
+        assert!((model.offset_x - offset).abs() < 2e-5, "{}", model.offset_x);
+        let selected = model.selected_solution().expect("selected").support;
+        assert_eq!(selected, truth);
+    }
+
+    #[test]
+    fn extent_spans_the_rows() {
+        let mut e = Extent::<f32>::new();
+        assert!(e.is_empty());
+        for x in [0.5, -1.5, 2.0] {
+            e.include(x);
+        }
+        assert!(!e.is_empty());
+        assert_eq!(e.span(), 3.5);
+        assert_eq!(e.bounds(), (-1.5, 2.0));
+    }
+}
