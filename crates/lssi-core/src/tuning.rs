@@ -309,7 +309,6 @@ fn measure<T: Real, const W: usize>(
     sample_period: f64,
     sigma2: f64,
 ) -> Option<Measured> {
-    let n = source.len();
     let (Ok(taps), Ok(reference)) = (
         Taps::<f64, W>::design(len, p, sample_period),
         Taps::<f64, W>::design(len, p + 2, sample_period),
@@ -321,7 +320,60 @@ fn measure<T: Real, const W: usize>(
     let diff_gain: f64 = h.iter().zip(r).map(|(a, b)| (a - b) * (a - b)).sum();
     // With x only, x̂ and v̂ come from the same samples through h₀ and h₁.
     let (h0, h1) = (taps.taps(0), taps.taps(1));
-    let positions = n - len + 1;
+    let Scan {
+        disagreement,
+        power,
+        count,
+        power_x,
+        power_v,
+    } = scan(source, len, order, (h, r), (h0, h1));
+    let count = count.max(1) as f64;
+    let power = power / count;
+    // Noise in a regressor does not average out: x̂'s, correlated with x̂'s through
+    // h₀·h₂, shifts the fit by about σ²h₀·h₂/rms(x̂) in units of x''; v̂'s variance
+    // σ²‖h₁‖² shrinks the v terms by that fraction of v̂'s power (at most all of x'').
+    let regressors = if order == 2 && power_x > 0.0 && power_v > 0.0 {
+        let xy: f64 = h0.iter().zip(h).map(|(a, b)| a * b).sum();
+        let vv: f64 = h1.iter().map(|a| a * a).sum();
+        let shift = sigma2 * xy / libm::sqrt(power_x / count);
+        let shrink = (sigma2 * vv / (power_v / count)).min(1.0);
+        shift * shift + shrink * shrink * power
+    } else {
+        0.0
+    };
+    Some(Measured {
+        disagreement: disagreement / count,
+        noise: sigma2 * diff_gain,
+        variance: sigma2 * gain,
+        power,
+        regressors,
+        valid: true,
+    })
+}
+
+/// Sums over the windows a scan visits.
+struct Scan {
+    /// Σ(h·s − r·s)²: the estimate against the reference's.
+    disagreement: f64,
+    /// Σ(h·s)².
+    power: f64,
+    /// Windows visited.
+    count: usize,
+    /// Σx̂², Σv̂² (from h₀ and h₁; with `order` 2 only).
+    power_x: f64,
+    power_v: f64,
+}
+
+/// Applies the taps `h` and the reference `r` (and, for `order` 2, h₀ and h₁) to about
+/// [`POINTS`] windows of `len` samples spread over `source`.
+fn scan<T: Real>(
+    source: &[T],
+    len: usize,
+    order: usize,
+    (h, r): (&[f64], &[f64]),
+    (h0, h1): (&[f64], &[f64]),
+) -> Scan {
+    let positions = source.len() - len + 1;
     let step = (positions / POINTS).max(1);
     let (mut disagreement, mut power, mut count) = (0.0, 0.0, 0usize);
     let (mut power_x, mut power_v) = (0.0, 0.0);
@@ -349,28 +401,13 @@ fn measure<T: Real, const W: usize>(
         count += 1;
         start += step;
     }
-    let count = count.max(1) as f64;
-    let power = power / count;
-    // Noise in a regressor does not average out: x̂'s, correlated with x̂'s through
-    // h₀·h₂, shifts the fit by about σ²h₀·h₂/rms(x̂) in units of x''; v̂'s variance
-    // σ²‖h₁‖² shrinks the v terms by that fraction of v̂'s power (at most all of x'').
-    let regressors = if order == 2 && power_x > 0.0 && power_v > 0.0 {
-        let xy: f64 = h0.iter().zip(h).map(|(a, b)| a * b).sum();
-        let vv: f64 = h1.iter().map(|a| a * a).sum();
-        let shift = sigma2 * xy / libm::sqrt(power_x / count);
-        let shrink = (sigma2 * vv / (power_v / count)).min(1.0);
-        shift * shift + shrink * shrink * power
-    } else {
-        0.0
-    };
-    Some(Measured {
-        disagreement: disagreement / count,
-        noise: sigma2 * diff_gain,
-        variance: sigma2 * gain,
+    Scan {
+        disagreement,
         power,
-        regressors,
-        valid: true,
-    })
+        count,
+        power_x,
+        power_v,
+    }
 }
 
 /// The window and degree of least estimated cost (bias² + regressor noise + variance over

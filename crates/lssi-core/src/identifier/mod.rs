@@ -1,10 +1,14 @@
 //! The streaming identifier: one sample in, now and then a model out.
 //!
-//! A sample's way through it (docs/design.md): ring buffer → fixed-lag local polynomial estimates
-//! of x, x', x'' → k-neighbour smoothing of x and x' → library row θ(x, x', t [, u]) scaled to
-//! unit size → with `Config::test_rows`, sums of rows under a smooth test function (the weak
-//! form, `weak`) → square-root RLS update (into one of two interleaved factors) → every
-//! `screening_period` samples: sensor offsets, threshold sweep, MES → [`Model`].
+//! [`Identifier`] is a composition of stages, each a type in its own module with its own
+//! tests, called in the order a sample's data flows (`push`, then `rows.rs`):
+//! `intake` (checks, gaps, schedule) → `front` (ring buffers, fixed-lag local-polynomial
+//! estimates of x, x', x'') → `offset` (velocity offset) and `noise` (fourth differences) →
+//! `smooth` (k-neighbour smoothing, delay line) → `gate` (excitation) → `phasor` (sin/cos Ωt)
+//! → `columns` (library row θ(x, x', t [, u]) scaled to unit size) → `halves` (warm-up, then
+//! square-root RLS into one of the two held-out factors A and B; with `Config::test_rows`,
+//! sums of rows under a smooth test function, the weak form) → every `screening_period`
+//! samples, `screening`: sensor offsets (`origin`), threshold sweep, MES → [`Model`].
 //!
 //! ```
 //! use lssi_core::{Config, Identifier, Sample};
