@@ -23,7 +23,9 @@ pub mod ode;
 pub mod systems;
 
 pub use ode::{State, integrate_at, rk4_step};
-pub use systems::{DUFFING_TRUTH, EQ17_OMEGA, Point, duffing, eq17, eq17_acceleration, eq17_truth};
+pub use systems::{
+    DUFFING_TRUTH, EQ17_OMEGA, Point, duffing, duffing_at, eq17, eq17_acceleration, eq17_truth,
+};
 
 /// A seeded pseudo-random sequence (SplitMix64): uniform and Gaussian (Box–Muller) draws.
 #[derive(Clone, Debug)]

@@ -21,9 +21,13 @@ pub const DUFFING_TRUTH: [(&str, f64); 4] =
 
 /// A forced Duffing oscillator x'' = −400x − 2x' − 4·10⁴x³ + u, u = 60 cos(15t), from
 /// x = 0.01, v = 0, by RK4 (10 steps a sample of 1 ms): `n` samples. The generator of
-/// `lssi_core`'s identifier tests, step for step.
+/// `lssi_core`'s identifier tests and `lssi_device`'s, step for step.
 pub fn duffing(n: usize) -> Vec<Point> {
-    let dt = 1e-3;
+    duffing_at(n, 1e-3)
+}
+
+/// [`duffing`] sampled every `dt` seconds (still 10 RK4 steps a sample).
+pub fn duffing_at(n: usize, dt: f64) -> Vec<Point> {
     let u = |t: f64| 60.0 * (15.0 * t).cos();
     let f = |t: f64, x: f64, v: f64| -400.0 * x - 2.0 * v - 4.0e4 * x * x * x + u(t);
     let (mut x, mut v) = (0.01, 0.0);
