@@ -75,9 +75,7 @@ impl Counters {
     pub fn rejected(&self) -> u64 {
         self.non_finite + self.out_of_range + self.out_of_order + self.channels
     }
-}
 
-impl Counters {
     /// Counts a rejected sample.
     pub(super) fn reject(&mut self, r: Rejection) {
         match r {
