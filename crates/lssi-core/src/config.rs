@@ -1,7 +1,7 @@
 //! Tunables of the identifier, validated once when it is built (state lives apart, in
 //! [`crate::Identifier`]).
 
-use crate::library::LibraryConfig;
+use crate::library::{LibraryConfig, PolyFamily};
 use core::fmt;
 
 /// Which measured channels a sample carries besides t and x.
@@ -192,6 +192,37 @@ impl From<crate::library::LibraryError> for ConfigError {
 }
 
 impl Config {
+    /// Every field zero (bits): storage for an identifier not yet configured.
+    pub(crate) const fn zeroed() -> Self {
+        Config {
+            sample_period: 0.0,
+            window: 0,
+            derivative_degree: 0,
+            library: LibraryConfig {
+                poly_order: 0,
+                family: PolyFamily::All,
+                constant: false,
+                harmonics: 0,
+                input: false,
+            },
+            omega: 0.0,
+            channels: Channels {
+                velocity: false,
+                input: false,
+            },
+            memory: None,
+            screening_period: 0,
+            thresholds: 0,
+            smoothing: false,
+            row_stride: 0,
+            parsimony: 0.0,
+            offsets: false,
+            max_abs: 0.0,
+            noise_correction: false,
+            test_rows: 0,
+        }
+    }
+
     /// Checks every field against the capacities `W` (window), `P` (terms) and `C` (channel
     /// ring buffers: x, and v and u when measured).
     pub fn validate<const W: usize, const P: usize, const C: usize>(

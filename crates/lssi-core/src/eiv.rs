@@ -186,47 +186,48 @@ pub(crate) fn correct<T: Real, const P: usize>(
             scratch[i][j] = bias;
             scratch[j][i] = bias;
         }
-        // The moment with the target: the lower columns' moments, and Stein's terms.
-        let mut bias = T::ZERO;
-        let mut complete = true;
-        'lower: for j in 0..=ai / 2 {
-            for k in 0..=bi / 2 {
-                if (j, k) == (0, 0) {
-                    continue;
-                }
-                let c = T::from_f64(hermite(ai, j) * hermite(bi, k))
-                    * power(noise.xx, j)
-                    * power(noise.vv, k);
-                if c == T::ZERO {
-                    continue;
-                }
-                match column(terms, ei, ai - 2 * j, bi - 2 * k) {
-                    Some(l) => {
-                        let sign = if (j + k) % 2 == 1 { T::ONE } else { -T::ONE };
-                        bias += sign * c * f.moment(l);
-                    }
-                    None => {
-                        complete = false;
-                        break 'lower;
-                    }
-                }
-            }
-        }
-        let e = product(ei, 0);
-        for (power_, cov, da, db) in [(ai, noise.xy, 1u8, 0u8), (bi, noise.vy, 0, 1)] {
-            if power_ == 0 || cov == T::ZERO || !complete {
-                continue;
-            }
-            let (a, b) = (ai - da, bi - db);
-            // The true moment e·x^a·v^b: the noisy one less its bias.
-            match noisy(f, terms, e, a, b).zip(gram_bias(f, terms, noise, e, a, b)) {
-                Some((m, g)) => bias += T::from_usize(usize::from(power_)) * cov * (m - g),
-                None => complete = false,
-            }
-        }
-        d[i] = if complete { bias } else { T::ZERO };
+        d[i] = target_bias(f, terms, noise, i).unwrap_or(T::ZERO);
     }
     f.correct(scratch, &d)
+}
+
+/// The bias of column `i`'s moment with the target: the lower columns' moments, and
+/// Stein's terms; `None` when a column it needs is not in the library.
+fn target_bias<T: Real, const P: usize>(
+    f: &Factor<T, P>,
+    terms: &[Term],
+    noise: &RowNoise<T>,
+    i: usize,
+) -> Option<T> {
+    let (ei, ai, bi) = split(terms[i]);
+    let mut bias = T::ZERO;
+    for j in 0..=ai / 2 {
+        for k in 0..=bi / 2 {
+            if (j, k) == (0, 0) {
+                continue;
+            }
+            let c = T::from_f64(hermite(ai, j) * hermite(bi, k))
+                * power(noise.xx, j)
+                * power(noise.vv, k);
+            if c == T::ZERO {
+                continue;
+            }
+            let l = column(terms, ei, ai - 2 * j, bi - 2 * k)?;
+            let sign = if (j + k) % 2 == 1 { T::ONE } else { -T::ONE };
+            bias += sign * c * f.moment(l);
+        }
+    }
+    let e = product(ei, 0);
+    for (power_, cov, da, db) in [(ai, noise.xy, 1u8, 0u8), (bi, noise.vy, 0, 1)] {
+        if power_ == 0 || cov == T::ZERO {
+            continue;
+        }
+        let (a, b) = (ai - da, bi - db);
+        // The true moment e·x^a·v^b: the noisy one less its bias.
+        let (m, g) = noisy(f, terms, e, a, b).zip(gram_bias(f, terms, noise, e, a, b))?;
+        bias += T::from_usize(usize::from(power_)) * cov * (m - g);
+    }
+    Some(bias)
 }
 
 #[cfg(test)]

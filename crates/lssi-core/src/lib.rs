@@ -20,6 +20,7 @@ pub mod identifier;
 pub mod library;
 pub mod model;
 pub mod real;
+pub mod restoring;
 mod screen;
 pub mod smoothing;
 pub mod tuning;
@@ -30,3 +31,4 @@ pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Sn
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, Term};
 pub use model::{MAX_SOLUTIONS, Model, Solution};
 pub use real::Real;
+pub use restoring::{Equilibrium, RestoringForce};

@@ -2,6 +2,7 @@
 
 use crate::library::Term;
 use crate::real::Real;
+use crate::restoring::RestoringForce;
 
 /// The most distinct solutions one screening keeps.
 pub const MAX_SOLUTIONS: usize = 32;
@@ -72,30 +73,27 @@ impl<T: Real, const P: usize> Model<T, P> {
         self.solutions.get(self.selected)
     }
 
-    fn linear(&self) -> (f64, f64) {
-        let get = |px| {
-            self.coefficient(Term::Monomial { px, pv: 0 })
-                .map_or(0.0, |c| c.to_f64())
-        };
-        (get(1), get(3))
+    /// The restoring force: the x-only terms, about the x offset (its wells, potential and
+    /// resonances).
+    pub fn restoring_force(&self) -> RestoringForce {
+        RestoringForce::from_model(self)
     }
 
-    /// Linear resonance f = √(−ξ_x)/2π in Hz, where ξ_x < 0.
+    /// Linear resonance f = √(−ξ_x)/2π in Hz, where ξ_x < 0
+    /// ([`RestoringForce::resonance_hz`]).
     pub fn resonance_hz(&self) -> Option<f64> {
-        let (k1, _) = self.linear();
-        (k1 < 0.0).then(|| libm::sqrt(-k1) / (2.0 * core::f64::consts::PI))
+        self.restoring_force().resonance_hz()
     }
 
     /// For a double well (ξ_x > 0, ξ_x³ < 0): the well positions ±√(−ξ_x/ξ_x³), in the
-    /// model's coordinates.
+    /// model's coordinates ([`RestoringForce::wells`]).
     pub fn wells(&self) -> Option<f64> {
-        let (k1, k3) = self.linear();
-        (k1 > 0.0 && k3 < 0.0).then(|| libm::sqrt(-k1 / k3))
+        self.restoring_force().wells()
     }
 
-    /// For a double well: the small-oscillation frequency inside a well, √(2ξ_x)/2π in Hz.
+    /// For a double well: the small-oscillation frequency inside a well, √(2ξ_x)/2π in Hz
+    /// ([`RestoringForce::well_resonance_hz`]).
     pub fn well_resonance_hz(&self) -> Option<f64> {
-        self.wells()
-            .map(|_| libm::sqrt(2.0 * self.linear().0) / (2.0 * core::f64::consts::PI))
+        self.restoring_force().well_resonance_hz()
     }
 }

@@ -299,6 +299,24 @@ pub(crate) fn sweep<T: Real, const P: usize>(
     }
 
     // MES with the parsimony rule.
+    let selected = mes(solutions, all, y_norm, parsimony);
+    out.selected = selected;
+    out.coefficients = [T::ZERO; P];
+    if let Some(s) = out.solutions.get(selected) {
+        all.solve_in(s.support, &mut out.coefficients, work);
+    }
+}
+
+/// Minimum-error sparsity (MES) with the parsimony rule: among the solutions whose held-out
+/// error is within `parsimony` of the least (plus a floor of rounding), the sparsest, then
+/// the least error. The index of the selected one (0 when there are none).
+#[inline(always)]
+fn mes<T: Real, const P: usize>(
+    solutions: &[Solution<T>],
+    all: &Factor<T, P>,
+    y_norm: T,
+    parsimony: T,
+) -> usize {
     let mut selected = 0;
     if !solutions.is_empty() {
         let mut least = T::MAX;
@@ -325,11 +343,7 @@ pub(crate) fn sweep<T: Real, const P: usize>(
             selected = i;
         }
     }
-    out.selected = selected;
-    out.coefficients = [T::ZERO; P];
-    if let Some(s) = out.solutions.get(selected) {
-        all.solve_in(s.support, &mut out.coefficients, work);
-    }
+    selected
 }
 
 #[cfg(test)]

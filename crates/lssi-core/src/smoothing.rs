@@ -168,14 +168,8 @@ impl<T: Real> KnnSmoother<T> {
     /// ε(K) is still accumulated, on one row in 16 instead of one in 4, the other rows only
     /// go into the history, and what comes back is the unsmoothed value ([`Self::centre`]).
     pub fn push_with(&mut self, value: T, apply: bool) -> Option<T> {
-        self.ring[(self.head + self.filled) % RING] = value;
-        if self.filled < RING {
-            self.filled += 1;
-            if self.filled < RING {
-                return None;
-            }
-        } else {
-            self.head = (self.head + 1) % RING;
+        if !self.record(value) {
+            return None;
         }
         let centre = SPAN + 1;
         let own = self.at(centre);
@@ -191,7 +185,54 @@ impl<T: Real> KnnSmoother<T> {
             self.rows = self.rows.wrapping_sub(1);
         }
         let (cl, cr) = (self.at(centre - 1), self.at(centre + 1));
-        // Candidates: rows 1..=2·SPAN+1 except the centre, nearest context first.
+        let order = self.nearest(cl, cr);
+        self.rows = self.rows.wrapping_add(1);
+        let evaluate = !apply || self.rows.is_multiple_of(EVALUATE_EVERY * self.sparseness);
+        let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
+        let mut z = self.gram(&order, k_used, evaluate, (cl, cr), own);
+        cholesky(&mut z, k_used);
+        let mut values = [T::ZERO; MAX_NEIGHBOURS];
+        for (a, slot) in values.iter_mut().enumerate().take(k_used) {
+            *slot = self.at(order[a]);
+        }
+        let g = forward_ones(&z, k_used);
+        let weights_for = |k: usize| weighted(&z, &g, &values, k, own);
+        if evaluate {
+            self.evaluations += T::ONE;
+            let mut chosen = own;
+            for k in MIN_NEIGHBOURS..=MAX_NEIGHBOURS {
+                let estimate = weights_for(k);
+                let e = own - estimate;
+                self.errors[k] += e * e;
+                if apply && k == self.k {
+                    chosen = estimate;
+                }
+            }
+            Some(chosen)
+        } else {
+            Some(weights_for(self.k))
+        }
+    }
+
+    /// Writes the next row's value into the history; returns whether the history is full.
+    #[inline(always)]
+    fn record(&mut self, value: T) -> bool {
+        self.ring[(self.head + self.filled) % RING] = value;
+        if self.filled < RING {
+            self.filled += 1;
+            if self.filled < RING {
+                return false;
+            }
+        } else {
+            self.head = (self.head + 1) % RING;
+        }
+        true
+    }
+
+    /// The candidate rows 1..=2·SPAN+1 but the centre, nearest context (cl, cr) first.
+    #[inline(always)]
+    fn nearest(&self, cl: T, cr: T) -> [usize; 2 * SPAN] {
+        let centre = SPAN + 1;
         let mut order = [0usize; 2 * SPAN];
         let mut distance = [T::ZERO; 2 * SPAN];
         let mut count = 0;
@@ -212,10 +253,19 @@ impl<T: Real> KnnSmoother<T> {
             order[p] = j;
             count += 1;
         }
-        self.rows = self.rows.wrapping_add(1);
-        let evaluate = !apply || self.rows.is_multiple_of(EVALUATE_EVERY * self.sparseness);
-        let k_used = if evaluate { MAX_NEIGHBOURS } else { self.k };
-        // Local Gram matrix Z (eq. 4) of the k_used nearest contexts.
+        order
+    }
+
+    /// The local Gram matrix Z (eq. 4) of the `k_used` nearest contexts, regularised.
+    #[inline(always)]
+    fn gram(
+        &self,
+        order: &[usize; 2 * SPAN],
+        k_used: usize,
+        evaluate: bool,
+        (cl, cr): (T, T),
+        own: T,
+    ) -> [[T; MAX_NEIGHBOURS]; MAX_NEIGHBOURS] {
         let mut diff = [[T::ZERO; 2]; MAX_NEIGHBOURS];
         for (a, d) in diff.iter_mut().enumerate().take(k_used) {
             let j = order[a];
@@ -247,71 +297,72 @@ impl<T: Real> KnnSmoother<T> {
         for (a, row) in z.iter_mut().enumerate().take(k_used) {
             row[a] += mu;
         }
-        // Cholesky Z = L Lᵀ, in place in the lower triangle.
-        for a in 0..k_used {
-            for b in 0..=a {
-                let mut s = z[a][b];
-                for c in 0..b {
-                    s -= z[a][c] * z[b][c];
-                }
-                if a == b {
-                    z[a][a] = if s > T::ZERO { s.sqrt() } else { T::EPSILON };
-                } else {
-                    z[a][b] = s / z[b][b];
-                }
+        z
+    }
+}
+
+/// Cholesky Z = L Lᵀ of the leading `k` × `k` block, in place in the lower triangle.
+#[inline(always)]
+fn cholesky<T: Real>(z: &mut [[T; MAX_NEIGHBOURS]; MAX_NEIGHBOURS], k: usize) {
+    for a in 0..k {
+        for b in 0..=a {
+            let mut s = z[a][b];
+            for c in 0..b {
+                s -= z[a][c] * z[b][c];
             }
-        }
-        let values = {
-            let mut v = [T::ZERO; MAX_NEIGHBOURS];
-            for (a, slot) in v.iter_mut().enumerate().take(k_used) {
-                *slot = self.at(order[a]);
-            }
-            v
-        };
-        // Forward solve L g = 1 once; for each K the weights solve Lₖᵀ w = gₖ (leading block).
-        let mut g = [T::ZERO; MAX_NEIGHBOURS];
-        for a in 0..k_used {
-            let mut s = T::ONE;
-            for c in 0..a {
-                s -= z[a][c] * g[c];
-            }
-            g[a] = s / z[a][a];
-        }
-        let weights_for = |k: usize| -> T {
-            let mut w = [T::ZERO; MAX_NEIGHBOURS];
-            for a in (0..k).rev() {
-                let mut s = g[a];
-                for c in a + 1..k {
-                    s -= z[c][a] * w[c];
-                }
-                w[a] = s / z[a][a];
-            }
-            let (mut sum, mut value) = (T::ZERO, T::ZERO);
-            for a in 0..k {
-                sum += w[a];
-                value += w[a] * values[a];
-            }
-            if sum.abs() > T::EPSILON {
-                value / sum
+            if a == b {
+                z[a][a] = if s > T::ZERO { s.sqrt() } else { T::EPSILON };
             } else {
-                own
+                z[a][b] = s / z[b][b];
             }
-        };
-        if evaluate {
-            self.evaluations += T::ONE;
-            let mut chosen = own;
-            for k in MIN_NEIGHBOURS..=MAX_NEIGHBOURS {
-                let estimate = weights_for(k);
-                let e = own - estimate;
-                self.errors[k] += e * e;
-                if apply && k == self.k {
-                    chosen = estimate;
-                }
-            }
-            Some(chosen)
-        } else {
-            Some(weights_for(self.k))
         }
+    }
+}
+
+/// Forward solve L g = 1 once; for each K the weights solve Lₖᵀ w = gₖ (leading block).
+#[inline(always)]
+fn forward_ones<T: Real>(
+    z: &[[T; MAX_NEIGHBOURS]; MAX_NEIGHBOURS],
+    k: usize,
+) -> [T; MAX_NEIGHBOURS] {
+    let mut g = [T::ZERO; MAX_NEIGHBOURS];
+    for a in 0..k {
+        let mut s = T::ONE;
+        for c in 0..a {
+            s -= z[a][c] * g[c];
+        }
+        g[a] = s / z[a][a];
+    }
+    g
+}
+
+/// The weighted mean of the `k` nearest values (weights from Lₖᵀ w = gₖ), or `own` when
+/// the weights cancel.
+#[inline(always)]
+fn weighted<T: Real>(
+    z: &[[T; MAX_NEIGHBOURS]; MAX_NEIGHBOURS],
+    g: &[T; MAX_NEIGHBOURS],
+    values: &[T; MAX_NEIGHBOURS],
+    k: usize,
+    own: T,
+) -> T {
+    let mut w = [T::ZERO; MAX_NEIGHBOURS];
+    for a in (0..k).rev() {
+        let mut s = g[a];
+        for c in a + 1..k {
+            s -= z[c][a] * w[c];
+        }
+        w[a] = s / z[a][a];
+    }
+    let (mut sum, mut value) = (T::ZERO, T::ZERO);
+    for a in 0..k {
+        sum += w[a];
+        value += w[a] * values[a];
+    }
+    if sum.abs() > T::EPSILON {
+        value / sum
+    } else {
+        own
     }
 }
 

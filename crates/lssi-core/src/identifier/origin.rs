@@ -2,6 +2,56 @@
 
 use super::*;
 
+/// Steps of the grid on which the equilibria of the dense model are bracketed.
+const EQUILIBRIUM_STEPS: usize = 256;
+
+/// The range of x̂ over the rows: where the origin search looks.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Extent<T> {
+    min: T,
+    max: T,
+}
+
+impl<T: Real> Extent<T> {
+    /// Storage (all zero bits).
+    pub(super) const fn zeroed() -> Self {
+        Self {
+            min: T::ZERO,
+            max: T::ZERO,
+        }
+    }
+
+    /// No rows yet: empty.
+    pub(super) fn new() -> Self {
+        Self {
+            min: T::MAX,
+            max: -T::MAX,
+        }
+    }
+
+    /// Widens the range to `x`.
+    #[inline]
+    pub(super) fn include(&mut self, x: T) {
+        self.min = self.min.min(x);
+        self.max = self.max.max(x);
+    }
+
+    /// max − min.
+    pub(super) fn span(&self) -> T {
+        self.max - self.min
+    }
+
+    /// Whether no row was included.
+    pub(super) fn is_empty(&self) -> bool {
+        self.max < self.min
+    }
+
+    /// (min, max) in f64.
+    pub(super) fn bounds(&self) -> (f64, f64) {
+        (self.min.to_f64(), self.max.to_f64())
+    }
+}
+
 impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P, C> {
     /// With the origin at `c`: the equilibrium, nearest 0, of the model on `support` and the
     /// columns an x-shift of it needs. Returns the step to it, if Newton's method converges.
@@ -18,14 +68,14 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         w.all.solve_in(closure, &mut xi, &mut w.m);
         let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
         for (j, term) in self.library.terms().iter().enumerate() {
-            let value = (xi[j] * self.y_scale / self.scales[j]).to_f64();
+            let value = self.columns.physical(j, xi[j]).to_f64();
             match *term {
                 Term::Constant => poly[0] = value,
                 Term::Monomial { px, pv: 0 } => poly[usize::from(px)] = value,
                 _ => {}
             }
         }
-        let span = (self.x_max - self.x_min).to_f64().abs();
+        let span = self.extent.span().to_f64().abs();
         let mut x = 0.0f64;
         for _ in 0..30 {
             let (mut p, mut dp) = (0.0, 0.0);
@@ -117,7 +167,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         if self.library.x_shift_closure(support) == support {
             return None;
         }
-        let span = (self.x_max - self.x_min).abs();
+        let span = self.extent.span().abs();
         if !(span > T::ZERO) {
             return None;
         }
@@ -171,7 +221,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         for k in 0..n {
             for j in 0..n {
                 // Scaled: B[k][j] = M[j][k] d_k / d_j (columns θ/d).
-                b[k][j] = b[k][j] * self.scales[k] * self.inverse_scales[j];
+                b[k][j] = self.columns.scale_entry(b[k][j], k, j);
             }
         }
     }
@@ -191,7 +241,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         let mut poly = [0.0f64; crate::library::MAX_POLY_ORDER as usize + 1];
         let mut any = false;
         for (j, term) in self.library.terms().iter().enumerate() {
-            let c = (xi[j] * self.y_scale / self.scales[j]).to_f64();
+            let c = self.columns.physical(j, xi[j]).to_f64();
             match *term {
                 Term::Constant => poly[0] = c,
                 Term::Monomial { px, pv: 0 } => {
@@ -201,37 +251,17 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
                 _ => {}
             }
         }
-        if !any || self.x_max < self.x_min {
+        if !any || self.extent.is_empty() {
             return;
         }
-        let (lo, hi) = (self.x_min.to_f64(), self.x_max.to_f64());
+        let (lo, hi) = self.extent.bounds();
         let middle = 0.5 * (lo + hi);
         let (lo, hi) = (lo - 0.5 * (hi - lo), hi + 0.5 * (hi - lo));
         let p = |x: f64| poly.iter().rev().fold(0.0, |acc, &c| acc * x + c);
-        const STEPS: usize = 256;
         let mut roots: heapless::Vec<f64, 16> = heapless::Vec::new();
-        let mut x0 = lo;
-        let mut p0 = p(x0);
-        for i in 1..=STEPS {
-            let x1 = lo + (hi - lo) * i as f64 / STEPS as f64;
-            let p1 = p(x1);
-            if p0 == 0.0 || p0 * p1 < 0.0 {
-                let (mut a, mut b, mut pa) = (x0, x1, p0);
-                for _ in 0..80 {
-                    let m = 0.5 * (a + b);
-                    let pm = p(m);
-                    if pa * pm <= 0.0 {
-                        b = m;
-                    } else {
-                        a = m;
-                        pa = pm;
-                    }
-                }
-                let _ = roots.push(0.5 * (a + b));
-            }
-            x0 = x1;
-            p0 = p1;
-        }
+        crate::restoring::bracket_roots(p, lo, hi, EQUILIBRIUM_STEPS, |root| {
+            let _ = roots.push(root);
+        });
         // Nearest the middle of the data first.
         let r = roots.as_mut_slice();
         for i in 1..r.len() {
@@ -247,5 +277,105 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
                 break;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Channels, LibraryConfig, PolyFamily, Sample};
+
+    /// The forced Duffing oscillator with measured v, its x read by a sensor whose zero is
+    /// `offset` off: x'' = −400(x − c) − 2v − 4·10⁴(x − c)³ + 60 cos(15t).
+    fn identifier(offset: f64) -> Box<Identifier<f64, 128, 16, 3>> {
+        let config = Config {
+            sample_period: 1e-3,
+            window: 63,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: 1,
+                input: false,
+            },
+            omega: 15.0,
+            channels: Channels {
+                velocity: true,
+                input: false,
+            },
+            screening_period: 100_000,
+            offsets: true,
+            ..Config::default()
+        };
+        let mut id = Box::new(Identifier::new(config).expect("valid"));
+        for p in lssi_testkit::duffing(30_000) {
+            let sample = Sample {
+                t: p.t,
+                x: p.x + offset,
+                v: Some(p.v),
+                u: None,
+            };
+            id.push(sample).expect("clean");
+        }
+        id
+    }
+
+    fn support(id: &Identifier<f64, 128, 16, 3>, terms: &[Term]) -> u32 {
+        terms.iter().fold(0, |s, &t| {
+            s | 1u32 << id.library.index_of(t).expect("in the library")
+        })
+    }
+
+    #[test]
+    fn the_origin_search_finds_a_sensor_offset() {
+        let offset = 0.004;
+        let mut id = identifier(offset);
+        let mut w = Work::new(id.library.len());
+        id.prepare(0.0, 0.0, false, &mut w);
+        // The dense model's equilibria: the one nearest the data's middle is the offset.
+        let mut candidates: heapless::Vec<f64, 7> = heapless::Vec::new();
+        id.equilibria(&w.all, &mut w.m, &mut candidates);
+        assert!((candidates[0] - offset).abs() < 2e-4, "{candidates:?}");
+        // The true support, about the right origin, fits best there (golden section from a
+        // guess 1 mm off).
+        let truth = support(
+            &id,
+            &[
+                Term::Monomial { px: 1, pv: 0 },
+                Term::Monomial { px: 0, pv: 1 },
+                Term::Monomial { px: 3, pv: 0 },
+                Term::Cos(1),
+            ],
+        );
+        let found = id
+            .best_origin(0.0, 0.003, truth, &mut w)
+            .expect("inside the bracket");
+        assert!((found - offset).abs() < 2e-5, "{found}");
+        // Newton on the model with the terms a shift creates, from the recording's zero.
+        let shifted = truth | support(&id, &[Term::Constant, Term::Monomial { px: 2, pv: 0 }]);
+        let step = id
+            .refine_origin(0.0, 0.0, shifted, &mut w)
+            .expect("converges");
+        assert!((step - offset).abs() < 2e-5, "{step}");
+        // A support closed under shifts has no best origin.
+        assert!(id.best_origin(0.0, 0.0, shifted, &mut w).is_none());
+        // The screening puts the model about it, with the true terms only.
+        assert!(id.screen());
+        let model = id.model().expect("a model");
+        assert!((model.offset_x - offset).abs() < 2e-5, "{}", model.offset_x);
+        let selected = model.selected_solution().expect("selected").support;
+        assert_eq!(selected, truth);
+    }
+
+    #[test]
+    fn extent_spans_the_rows() {
+        let mut e = Extent::<f32>::new();
+        assert!(e.is_empty());
+        for x in [0.5, -1.5, 2.0] {
+            e.include(x);
+        }
+        assert!(!e.is_empty());
+        assert_eq!(e.span(), 3.5);
+        assert_eq!(e.bounds(), (-1.5, 2.0));
     }
 }

@@ -11,35 +11,12 @@ const XU: Channels = Channels {
     input: true,
 };
 
-/// A forced Duffing oscillator x'' = −400x − 2x' − 4·10⁴x³ + u, u = 60 cos(15t), by RK4
-/// (10 steps a sample of 1 ms): `n` samples of (t, x, v, u).
-fn duffing(n: usize) -> Vec<(f64, f64, f64, f64)> {
-    let dt = 1e-3;
-    let u = |t: f64| 60.0 * (15.0 * t).cos();
-    let f = |t: f64, x: f64, v: f64| -400.0 * x - 2.0 * v - 4.0e4 * x * x * x + u(t);
-    let (mut x, mut v) = (0.01, 0.0);
-    let h = dt / 10.0;
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let t0 = i as f64 * dt;
-        out.push((t0, x, v, u(t0)));
-        for j in 0..10 {
-            let t = t0 + j as f64 * h;
-            let (k1x, k1v) = (v, f(t, x, v));
-            let (k2x, k2v) = (
-                v + 0.5 * h * k1v,
-                f(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v),
-            );
-            let (k3x, k3v) = (
-                v + 0.5 * h * k2v,
-                f(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v),
-            );
-            let (k4x, k4v) = (v + h * k3v, f(t + h, x + h * k3x, v + h * k3v));
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-        }
-    }
-    out
+/// The forced Duffing oscillator x'' = −400x − 2x' − 4·10⁴x³ + u, u = 60 cos(15t), 1 ms
+/// samples of (t, x, v, u) (`lssi_testkit::duffing`).
+fn duffing(n: usize) -> impl Iterator<Item = (f64, f64, f64, f64)> {
+    lssi_testkit::duffing(n)
+        .into_iter()
+        .map(|p| (p.t, p.x, p.v, p.u))
 }
 
 fn config(channels: Channels) -> Config {

@@ -116,34 +116,14 @@ pub fn frame(message: &HostMsg) -> Vec<u8> {
     out
 }
 
-/// A forced Duffing oscillator x'' = -k x - c x' - a x³ + F cos(Ω t), RK4 with 10 steps per
-/// sample of `dt`: `n` samples of (t, x) in f64.
+/// A forced Duffing oscillator x'' = -k x - c x' - a x³ + F cos(Ω t) (k = 400, c = 2,
+/// a = 4·10⁴, F = 60, Ω = [`OMEGA`]), RK4 with 10 steps per sample of `dt`: `n` samples of
+/// (t, x) in f64 (`lssi_testkit::duffing_at`).
 pub fn duffing(n: usize, dt: f64) -> Vec<(f64, f64)> {
-    let (k, c, a, force, omega) = (400.0, 2.0, 4.0e4, 60.0, OMEGA);
-    let f = |t: f64, x: f64, v: f64| -k * x - c * v - a * x * x * x + force * (omega * t).cos();
-    let (mut x, mut v) = (0.01, 0.0);
-    let h = dt / 10.0;
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let t0 = i as f64 * dt;
-        out.push((t0, x));
-        for j in 0..10 {
-            let t = t0 + j as f64 * h;
-            let (k1x, k1v) = (v, f(t, x, v));
-            let (k2x, k2v) = (
-                v + 0.5 * h * k1v,
-                f(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v),
-            );
-            let (k3x, k3v) = (
-                v + 0.5 * h * k2v,
-                f(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v),
-            );
-            let (k4x, k4v) = (v + h * k3v, f(t + h, x + h * k3x, v + h * k3v));
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-        }
-    }
-    out
+    lssi_testkit::duffing_at(n, dt)
+        .into_iter()
+        .map(|p| (p.t, p.x))
+        .collect()
 }
 
 /// The Duffing forcing's angular frequency, rad/s.

@@ -1,0 +1,291 @@
+//! The held-out halves A and B: where each regression row goes, written once.
+//!
+//! Rows are folded into two square-root factors in alternating blocks, so that each half
+//! can score the models fitted on the other (the held-out error of the screening). Row
+//! number k (counted from 0) belongs to block ⌊k / block_len⌋, and an even block goes to A,
+//! an odd one to B ([`Halves::goes_to_a`]).
+
+use super::{Row, WARMUP_ROWS};
+use crate::factor::Factor;
+use crate::real::Real;
+use crate::weak::TestRows;
+
+/// Test-function sums per block of A or B (two test functions' worth).
+pub(super) const TEST_BLOCK: u64 = 8;
+
+/// The two halves A and B of the data, or, until the column scales are known, the warm-up
+/// rows. The halves are empty while rows wait in the warm-up buffer, so the two share their
+/// memory (the buffer's 1.5 KB of RAM on the M4F with P = 16).
+#[derive(Clone)]
+pub(super) enum Store<T, const P: usize> {
+    Warmup(heapless::Vec<Row<T>, WARMUP_ROWS>),
+    Halves(Factor<T, P>, Factor<T, P>),
+}
+
+/// What gathers the rows before they reach A or B. The two never coexist, so the sums take
+/// no memory beyond the block factor's.
+#[derive(Clone)]
+pub(super) enum Collector<T, const P: usize> {
+    /// Rows as they are, gathered in a block factor that is merged into A or B when full.
+    Block(Factor<T, P>),
+    /// The test-function sums (`Config::test_rows`); each completed one goes into A or B.
+    Sums(TestRows<T, P>),
+}
+
+/// The solver stage: the warm-up rows, then A, B and the block (or sums) in progress.
+///
+/// ```text
+/// let mut halves = Halves::zeroed();
+/// halves.configure(n, test_rows, blocks, sqrt_lambda_row);
+/// // ... warm-up, then for every scaled row θ, y:
+/// halves.push(&theta, y, n);
+/// let (weight_a, weight_b) = halves.weights();
+/// ```
+#[derive(Clone)]
+pub(super) struct Halves<T, const P: usize> {
+    store: Store<T, P>,
+    /// What gathers the rows before they reach A or B.
+    collector: Collector<T, P>,
+    /// Rows given to A and B: the rows themselves, or the test-function sums.
+    regression_rows: u64,
+    /// Regression rows per block of A or B.
+    block_len: u64,
+    sqrt_lambda: T,
+    sqrt_lambda_blocks: T,
+}
+
+impl<T: Real, const P: usize> Halves<T, P> {
+    /// Storage, not usable halves (all zero bits but the empty enums' tags).
+    pub(super) const fn zeroed() -> Self {
+        Self {
+            store: Store::Warmup(heapless::Vec::new()),
+            collector: Collector::Block(Factor::new(0)),
+            regression_rows: 0,
+            block_len: 0,
+            sqrt_lambda: T::ZERO,
+            sqrt_lambda_blocks: T::ZERO,
+        }
+    }
+
+    /// Empty halves over `n` columns, in the warm-up: rows as they are in blocks of `blocks`
+    /// rows (`test_rows == 0`), or test-function sums of width `test_rows` in blocks of
+    /// [`TEST_BLOCK`]; forgetting by `sqrt_lambda_row`² a row.
+    pub(super) fn configure(
+        &mut self,
+        n: usize,
+        test_rows: u16,
+        blocks: u64,
+        sqrt_lambda_row: f64,
+    ) {
+        self.store = Store::Warmup(heapless::Vec::new());
+        self.regression_rows = 0;
+        if test_rows == 0 {
+            self.collector = Collector::Block(Factor::new(n));
+            self.block_len = blocks;
+            self.sqrt_lambda = T::from_f64(sqrt_lambda_row);
+            // A's content at a merge is two blocks old.
+            self.sqrt_lambda_blocks = T::from_f64(libm::pow(sqrt_lambda_row, 2.0 * blocks as f64));
+        } else {
+            // λ and the blocks count in sums (one every L/4 rows); a block of eight sums
+            // spans two test functions, so that A's and B's rows share little of the data.
+            // A sum goes straight into A or B, whose content at the start of its block is
+            // one block old.
+            let mut sums = TestRows::zeroed();
+            sums.configure(test_rows);
+            let sqrt_lambda_sum = libm::pow(sqrt_lambda_row, f64::from(sums.quarter()));
+            self.collector = Collector::Sums(sums);
+            self.block_len = TEST_BLOCK;
+            self.sqrt_lambda = T::from_f64(sqrt_lambda_sum);
+            self.sqrt_lambda_blocks = T::from_f64(libm::pow(sqrt_lambda_sum, TEST_BLOCK as f64));
+        }
+    }
+
+    /// The held-out rule: regression row number `row` (from 0) goes to A when its block's
+    /// number is even, to B when it is odd.
+    #[inline]
+    fn goes_to_a(row: u64, block_len: u64) -> bool {
+        (row / block_len).is_multiple_of(2)
+    }
+
+    /// Keeps a row while the column scales are unknown. Returns `true` once the warm-up
+    /// is full (or over): then [`Halves::end_warmup`] is due.
+    pub(super) fn keep(&mut self, row: Row<T>) -> bool {
+        if let Store::Warmup(rows) = &mut self.store
+            && rows.push(row).is_ok()
+            && rows.len() < WARMUP_ROWS
+        {
+            return false;
+        }
+        true
+    }
+
+    /// Ends the warm-up: the halves, empty, take the warm-up's memory; returns its rows.
+    #[inline(always)]
+    pub(super) fn end_warmup(&mut self, n: usize) -> heapless::Vec<Row<T>, WARMUP_ROWS> {
+        let empty = Store::Halves(Factor::new(n), Factor::new(n));
+        match core::mem::replace(&mut self.store, empty) {
+            Store::Warmup(rows) => rows,
+            Store::Halves(..) => heapless::Vec::new(),
+        }
+    }
+
+    /// Folds a scaled row (the first `n` entries of `theta`, target `y`) into A or B.
+    #[inline]
+    pub(super) fn push(&mut self, theta: &[T; P], y: T, n: usize) {
+        let Self {
+            collector,
+            store,
+            regression_rows,
+            block_len,
+            sqrt_lambda,
+            sqrt_lambda_blocks,
+        } = self;
+        let Store::Halves(a, b) = store else {
+            // Rows reach the collector only after the warm-up, so the halves exist.
+            return;
+        };
+        let (block_len, sqrt_lambda, sqrt_lambda_blocks) =
+            (*block_len, *sqrt_lambda, *sqrt_lambda_blocks);
+        match collector {
+            // Rows go into a block factor first; a whole block is then merged into A or B.
+            // The big factors thus grow by block-sized increments, which f32 resolves,
+            // instead of by single rows, whose relative size 1/n falls below f32's rounding
+            // after ~10⁵ rows.
+            Collector::Block(block) => {
+                block.update(theta, y, sqrt_lambda);
+                *regression_rows += 1;
+                if regression_rows.is_multiple_of(block_len) {
+                    // The block's last row decides.
+                    let to_a = Self::goes_to_a(*regression_rows - 1, block_len);
+                    let factor = if to_a { a } else { b };
+                    factor.forget(sqrt_lambda_blocks);
+                    factor.merge(block);
+                    block.clear();
+                }
+            }
+            // A sum weighs as much as L/4 rows and there are few of them (10⁵ samples make
+            // 400): each goes straight into A or B, blocks of TEST_BLOCK alternating.
+            Collector::Sums(sums) => {
+                sums.push(theta, y, n, |sum, target| {
+                    let to_a = Self::goes_to_a(*regression_rows, block_len);
+                    let factor = if to_a { &mut *a } else { &mut *b };
+                    if regression_rows.is_multiple_of(block_len) {
+                        factor.forget(sqrt_lambda_blocks);
+                    }
+                    factor.update(sum, target, sqrt_lambda);
+                    *regression_rows += 1;
+                });
+            }
+        }
+    }
+
+    /// The block in progress, if it holds rows, and whether it goes to A.
+    fn open_block(&self) -> Option<(&Factor<T, P>, bool)> {
+        match &self.collector {
+            // The next row is in the same block: a block with rows is not full.
+            Collector::Block(block) if block.weight() > T::ZERO => {
+                Some((block, Self::goes_to_a(self.regression_rows, self.block_len)))
+            }
+            _ => None,
+        }
+    }
+
+    /// The weights the two halves A and B have with the block in progress merged in.
+    pub(super) fn weights(&self) -> (T, T) {
+        let (mut a, mut b) = match &self.store {
+            Store::Halves(a, b) => (a.weight(), b.weight()),
+            Store::Warmup(_) => (T::ZERO, T::ZERO),
+        };
+        if let Some((block, to_a)) = self.open_block() {
+            if to_a {
+                a += block.weight();
+            } else {
+                b += block.weight();
+            }
+        }
+        (a, b)
+    }
+
+    /// Copies A and B, with the block in progress merged in, into `a` and `b`.
+    pub(super) fn copy_into(&self, a: &mut Factor<T, P>, b: &mut Factor<T, P>) {
+        match &self.store {
+            Store::Halves(sa, sb) => {
+                a.copy_from(sa);
+                b.copy_from(sb);
+            }
+            Store::Warmup(_) => {
+                a.clear();
+                b.clear();
+            }
+        }
+        if let Some((block, to_a)) = self.open_block() {
+            if to_a { a.merge(block) } else { b.merge(block) }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(i: usize) -> ([f64; 4], f64) {
+        let x = (i as f64 * 0.37).sin();
+        let v = (i as f64 * 0.11).cos();
+        ([1.0, x, v, x * v], 2.0 * x - v)
+    }
+
+    fn filled(rows: usize, test_rows: u16) -> Halves<f64, 4> {
+        let mut h = Halves::<f64, 4>::zeroed();
+        h.configure(4, test_rows, 16, 1.0);
+        assert!(!h.keep(Row::default()));
+        let kept = h.end_warmup(4);
+        assert_eq!(kept.len(), 1);
+        for i in 0..rows {
+            let (theta, y) = row(i);
+            h.push(&theta, y, 4);
+        }
+        h
+    }
+
+    #[test]
+    fn blocks_alternate_between_a_and_b() {
+        // 3 whole blocks (A, B, A) and 5 rows of a fourth (B's).
+        let h = filled(3 * 16 + 5, 0);
+        let (a, b) = h.weights();
+        assert_eq!((a, b), (32.0, 21.0));
+        let (mut fa, mut fb) = (Factor::new(4), Factor::new(4));
+        h.copy_into(&mut fa, &mut fb);
+        assert_eq!((fa.weight(), fb.weight()), (32.0, 21.0));
+    }
+
+    #[test]
+    fn the_halves_together_are_all_the_rows() {
+        let h = filled(100, 0);
+        let (mut fa, mut fb) = (Factor::new(4), Factor::new(4));
+        h.copy_into(&mut fa, &mut fb);
+        fa.merge(&fb);
+        let mut all = Factor::<f64, 4>::new(4);
+        for i in 0..100 {
+            let (theta, y) = row(i);
+            all.update(&theta, y, 1.0);
+        }
+        let (mut p, mut q) = ([0.0; 4], [0.0; 4]);
+        fa.solve(0b1111, &mut p);
+        all.solve(0b1111, &mut q);
+        for (p, q) in p.iter().zip(q) {
+            assert!((p - q).abs() < 1e-9, "{p} {q}");
+        }
+    }
+
+    #[test]
+    fn the_warm_up_fills_then_ends() {
+        let mut h = Halves::<f32, 4>::zeroed();
+        h.configure(4, 0, 16, 1.0);
+        for _ in 0..WARMUP_ROWS - 1 {
+            assert!(!h.keep(Row::default()));
+        }
+        assert!(h.keep(Row::default()));
+        assert_eq!(h.end_warmup(4).len(), WARMUP_ROWS);
+        assert_eq!(h.weights(), (0.0, 0.0));
+    }
+}
