@@ -27,6 +27,8 @@ use crate::recording::RecordingError;
 pub const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code when the work failed for another reason, such as an unwritable output.
 pub const EXIT_FAILURE: u8 = 1;
+/// Exit status: the recording was read, but no model explains it (the quality gate).
+pub const EXIT_NO_DYNAMICS: u8 = 3;
 
 /// A failure of an `lssi` subcommand.
 #[derive(Debug)]
@@ -64,6 +66,9 @@ pub enum CliError {
     Input(String),
     /// The device or the link to it failed while working: a sentence naming the port.
     Device(String),
+    /// The identifier found no model that explains the recording (the quality gate,
+    /// [`crate::quality`]): a sentence naming the file and the reason. Exit status 3.
+    NoDynamics(String),
     /// An output file could not be written.
     Write {
         /// The file.
@@ -84,6 +89,7 @@ impl CliError {
             | CliError::Identify(_)
             | CliError::Input(_) => EXIT_BAD_INPUT,
             CliError::Write { .. } | CliError::Device(_) => EXIT_FAILURE,
+            CliError::NoDynamics(_) => EXIT_NO_DYNAMICS,
         }
     }
 
@@ -103,7 +109,8 @@ impl fmt::Display for CliError {
             CliError::Recording(error) => error.fmt(f),
             CliError::Identify(sentence)
             | CliError::Input(sentence)
-            | CliError::Device(sentence) => f.write_str(sentence),
+            | CliError::Device(sentence)
+            | CliError::NoDynamics(sentence) => f.write_str(sentence),
             CliError::BadFlag {
                 flag,
                 value,
@@ -135,7 +142,8 @@ impl std::error::Error for CliError {
             | CliError::Diverged { .. }
             | CliError::Identify(_)
             | CliError::Input(_)
-            | CliError::Device(_) => None,
+            | CliError::Device(_)
+            | CliError::NoDynamics(_) => None,
         }
     }
 }
