@@ -28,6 +28,8 @@ use crate::synth::OptionError;
 pub const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code when the work failed for another reason, such as an unwritable output.
 pub const EXIT_FAILURE: u8 = 1;
+/// Exit status: the recording was read, but no model explains it (the quality gate).
+pub const EXIT_NO_DYNAMICS: u8 = 3;
 
 /// A failure of an `lssi` subcommand.
 #[derive(Debug, thiserror::Error)]
@@ -75,6 +77,10 @@ pub enum CliError {
     /// The device or the link to it failed while working: a sentence naming the port.
     #[error("{0}")]
     Device(String),
+    /// The identifier found no model that explains the recording (the quality gate,
+    /// [`crate::identify::quality`]): a sentence naming the file and the reason. Exit status 3.
+    #[error("{0}")]
+    NoDynamics(String),
     /// An output file could not be written.
     #[error("{}: cannot write the file: {source}.", .path.display())]
     Write {
@@ -96,6 +102,7 @@ impl CliError {
             | CliError::Identify(_)
             | CliError::Input(_) => EXIT_BAD_INPUT,
             CliError::Write { .. } | CliError::Device(_) => EXIT_FAILURE,
+            CliError::NoDynamics(_) => EXIT_NO_DYNAMICS,
         }
     }
 

@@ -67,7 +67,7 @@
 //! | host sends | device replies |
 //! |---|---|
 //! | `Hello` (any version) | `HelloReply` with [`PROTOCOL_VERSION`], `max_terms` = P, `window_capacity` = W, `max_batch` = [`MAX_BATCH`] |
-//! | `Configure(c)` | builds the identifier from exactly `c` ([`wire::config_from_wire`]); `Ack { seq: CONTROL_SEQ }`, or (a field out of range, or more window, terms or channels than W, P, C) `Nak { seq: CONTROL_SEQ, BadConfig }` and the previous configuration and state stay |
+//! | `Configure(c)` | builds the identifier from exactly `c` ([`wire::config_from_wire`]); `Ack { seq: CONTROL_SEQ }`, or (a field out of range, or more window or channels than W, C) `Nak { seq: CONTROL_SEQ, BadConfig }`, (more terms than P) `Nak { seq: CONTROL_SEQ, TooManyTerms { terms, capacity } }` and the previous configuration and state stay |
 //! | `Samples(b)`, `b.seq` = next expected | every sample pushed once into the identifier (rejections are counted, not refused); `Ack { seq }`; then, if a scheduled screening ran during the batch, one `Model` (cause `Scheduled`, the latest) |
 //! | `Samples(b)`, `b.seq` < next expected | a duplicate: `Ack { seq }` again, nothing applied |
 //! | `Samples(b)`, `b.seq` > next expected | `Nak { seq: next expected, OutOfOrder }`: a batch was lost, resend from `seq` |
@@ -543,8 +543,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             Err(error) => {
                 #[cfg(feature = "defmt")]
                 defmt::warn!("configuration refused: {}", defmt::Display2Format(&error));
-                let _ = error;
-                self.nak(link, CONTROL_SEQ, NakReason::BadConfig)
+                let reason = wire::config_nak(&error);
+                self.nak(link, CONTROL_SEQ, reason)
             }
         }
     }

@@ -687,11 +687,11 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                         self.latest = None;
                         self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
                     }
-                    Err(_) => self.send(
+                    Err(error) => self.send(
                         link,
                         &DeviceMsg::Nak {
                             seq: CONTROL_SEQ,
-                            reason: NakReason::BadConfig,
+                            reason: wire::config_nak(&error),
                         },
                     ),
                 }

@@ -173,6 +173,25 @@ pub fn fits(config: &Config, window_capacity: u16, max_terms: u8) -> Result<(), 
     Ok(())
 }
 
+/// The nak of a `Configure` that `error` refused: [`NakReason::TooManyTerms`] with the size
+/// asked for and the limit when the library is too large, [`NakReason::BadConfig`] otherwise.
+///
+/// [`NakReason::TooManyTerms`]: lssi_proto::NakReason::TooManyTerms
+/// [`NakReason::BadConfig`]: lssi_proto::NakReason::BadConfig
+pub fn config_nak(error: &lssi_core::ConfigError) -> lssi_proto::NakReason {
+    let byte = |n: usize| u8::try_from(n).unwrap_or(u8::MAX);
+    match error {
+        lssi_core::ConfigError::Library(lssi_core::library::LibraryError::TooManyTerms {
+            wanted,
+            capacity,
+        }) => lssi_proto::NakReason::TooManyTerms {
+            terms: byte(*wanted),
+            capacity: byte(*capacity),
+        },
+        _ => lssi_proto::NakReason::BadConfig,
+    }
+}
+
 /// lssi-core's polynomial family as the wire names it.
 pub const fn family_to_wire(family: PolyFamily) -> lssi_proto::PolyFamily {
     match family {

@@ -101,13 +101,31 @@ fn a_bad_configuration_is_naked_and_the_old_one_stays() {
     assert_eq!(host.device.config(), Some(&duffing_config()));
     wire.window = 63;
     wire.poly_order = 9; // 55 monomials: beyond 16 terms
+    let asked = lssi_core::Library::<64>::count(&config_from_wire(&wire).library);
+    assert!(asked > DEFAULT_TERMS);
+    // A library over the capacity is refused naming the size asked for and the limit.
+    assert_eq!(
+        host.exchange(&HostMsg::Configure(wire)),
+        [DeviceMsg::Nak {
+            seq: CONTROL_SEQ,
+            reason: NakReason::TooManyTerms {
+                terms: asked as u8,
+                capacity: DEFAULT_TERMS as u8
+            }
+        }]
+    );
+    // Poly order 5 and 5 harmonics (32 terms), the largest library the host identifies.
+    wire.poly_order = 5;
+    wire.harmonics = 5;
+    let asked = lssi_core::Library::<64>::count(&config_from_wire(&wire).library);
     assert!(matches!(
         host.exchange(&HostMsg::Configure(wire))[..],
         [DeviceMsg::Nak {
-            reason: NakReason::BadConfig,
+            reason: NakReason::TooManyTerms { terms, capacity },
             ..
-        }]
+        }] if usize::from(terms) == asked && usize::from(capacity) == DEFAULT_TERMS
     ));
+    assert_eq!(host.device.config(), Some(&duffing_config()));
 }
 
 #[test]

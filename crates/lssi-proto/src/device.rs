@@ -141,6 +141,14 @@ pub enum NakReason {
     Busy,
     /// The host's protocol version is not the device's.
     VersionMismatch,
+    /// The configuration's library has more terms than the device holds (a `Configure`
+    /// refused for its size; other refusals are [`NakReason::BadConfig`]).
+    TooManyTerms {
+        /// Terms the configuration asks for (saturating at 255).
+        terms: u8,
+        /// The most terms the device holds.
+        capacity: u8,
+    },
 }
 
 /// Unit of the per-sample cost in [`DeviceMsg::Health`].

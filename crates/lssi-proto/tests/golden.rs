@@ -19,12 +19,12 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 4, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 5, "update the README's worked examples");
     assert_eq!(
         frame(&HostMsg::Hello {
-            protocol_version: 4
+            protocol_version: 5
         }),
-        [0x01, 0x06, 0x04, 0xCD, 0xE0, 0xFB, 0x36, 0x00]
+        [0x01, 0x06, 0x05, 0xCE, 0x63, 0x90, 0xC4, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),
@@ -75,4 +75,24 @@ fn golden_device_frames() {
         }),
         [0x08, 0x02, 0x07, 0x03, 0xC6, 0xCB, 0x36, 0x46, 0x00]
     );
+    // A struct variant: its index, then its fields (terms 55, capacity 16).
+    let refused = frame(&DeviceMsg::Nak {
+        seq: 7,
+        reason: NakReason::TooManyTerms {
+            terms: 55,
+            capacity: 16,
+        },
+    });
+    let mut bytes = refused.clone();
+    assert_eq!(
+        decode_frame::<DeviceMsg>(&mut bytes),
+        Ok(DeviceMsg::Nak {
+            seq: 7,
+            reason: NakReason::TooManyTerms {
+                terms: 55,
+                capacity: 16
+            }
+        })
+    );
+    assert_eq!(bytes[..5], [0x02, 0x07, 0x08, 55, 16]);
 }

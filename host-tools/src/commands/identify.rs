@@ -159,7 +159,7 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if args.track {
         return run_track(args, &recording, &options);
     }
-    let report = identify::identify_recording(&recording, &options)?;
+    let (report, quality) = identify::quality::identify_checked(&recording, &options)?;
     // Each rejected sample, on stderr: the first few named, then how many more.
     const NAMED: usize = 5;
     for warning in report.rejections.iter().take(NAMED) {
@@ -171,6 +171,22 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
             report.rejections.len() - NAMED,
             report.rejections.len()
         );
+    }
+    // The warnings of --json: the left-out samples, then why the model is withheld.
+    let mut warnings = identify::batch::warnings(&report);
+    warnings.extend(quality.failures.iter().cloned());
+    if !quality.passed() {
+        if args.json {
+            let mut text = serde_json::to_string(&report).unwrap_or_default();
+            text.pop();
+            text.push_str(",\"warnings\":");
+            text.push_str(&serde_json::Value::from(warnings).to_string());
+            text.push('}');
+            crate::outln!("{text}");
+        }
+        return Err(CliError::NoDynamics(identify::quality::refusal(
+            &recording, &quality,
+        )));
     }
     let refined = args.refine.then(|| {
         let model = crate::identify::simulate::SimModel::from_report(&report);
@@ -193,6 +209,11 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
             text.push_str(&serde_json::to_string(refined).unwrap_or_default());
             text.push('}');
         }
+        // Last: the warnings (an empty list when there are none).
+        text.pop();
+        text.push_str(",\"warnings\":");
+        text.push_str(&serde_json::Value::from(warnings).to_string());
+        text.push('}');
         crate::outln!("{text}");
     } else {
         crate::out!("{}", identify::render(&report));

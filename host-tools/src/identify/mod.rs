@@ -11,6 +11,8 @@
 //! selected terms) and [`terms`] (how library terms are named across the project).
 
 pub mod batch;
+pub mod blemish;
+pub mod quality;
 pub mod refine;
 pub mod simulate;
 pub mod terms;
@@ -180,17 +182,18 @@ pub fn configure(
         input: recording.u.is_some(),
     };
     // The window from the data: the target comes from v when it is measured.
+    // Blemished samples (non-finite, spikes, too early) are left out (`crate::identify::blemish`).
+    let scan = crate::identify::blemish::Scan::of(recording);
+    let kept = |c: &[f64]| -> Vec<f64> {
+        c.iter()
+            .zip(&scan.skip)
+            .filter(|(s, skip)| s.is_finite() && !**skip)
+            .map(|(s, _)| *s)
+            .collect()
+    };
     let (source, order): (Vec<f64>, usize) = match &recording.v {
-        Some(v) => (v.iter().copied().filter(|s| s.is_finite()).collect(), 1),
-        None => (
-            recording
-                .x
-                .iter()
-                .copied()
-                .filter(|s| s.is_finite())
-                .collect(),
-            2,
-        ),
+        Some(v) => (kept(v), 1),
+        None => (kept(&recording.x), 2),
     };
     let memory_samples = options
         .memory
@@ -255,6 +258,7 @@ pub fn configure(
         config.window = test.window;
         config.derivative_degree = test.degree;
     }
+    crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path)?;
     config
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
@@ -281,8 +285,18 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let mut rows = Vec::new();
     let x = &recording.x;
+    // Windows within clean, evenly sampled stretches only; each row's place on the time grid.
+    let clean = crate::identify::blemish::CleanWindows::new(
+        &crate::identify::blemish::Scan::of(recording),
+        n,
+    );
+    let mut places = Vec::new();
     let mut start = 0;
     while start + n <= x.len() {
+        if !clean.ok(start) {
+            start += stride;
+            continue;
+        }
         let w = &x[start..start + n];
         let (xh, vh, yh) = match &recording.v {
             Some(v) => {
@@ -303,12 +317,14 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
             let mut row = [0.0; TERM_CAPACITY];
             library.evaluate(xh, vh, 0.0, 0.0, &mut row);
             rows.push((recording.t[start + (n - 1) / 2], row, yh));
+            places.push((start + clean.missing_before(start)) / stride);
         }
         start += stride;
     }
     if rows.len() < 64 {
         return Err(IdentifyError(format!(
-            "{file}: too few samples to estimate the excitation frequency; give --omega."
+            "{file}: too few samples to estimate the excitation frequency{}; give --omega.",
+            crate::identify::blemish::because(&crate::identify::blemish::Scan::of(recording))
         )));
     }
     let p = library.len();
@@ -326,13 +342,16 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         f.residual_energy()
     };
     // Candidates: the peaks of the spectrum of x''.
-    let m = rows.len();
+    // Rows on the time grid (a row left out, or a gap, leaves zeros): the span, not the count.
+    let m = places
+        .last()
+        .map_or(0, |p| p - places[0] + 1)
+        .max(rows.len());
     let size = (4 * m).next_power_of_two();
-    let mut buffer: Vec<rustfft::num_complex::Complex<f64>> = rows
-        .iter()
-        .map(|(_, _, y)| rustfft::num_complex::Complex::new(*y, 0.0))
-        .collect();
-    buffer.resize(size, rustfft::num_complex::Complex::new(0.0, 0.0));
+    let mut buffer = vec![rustfft::num_complex::Complex::new(0.0, 0.0); size];
+    for ((_, _, y), place) in rows.iter().zip(&places) {
+        buffer[place - places[0]] = rustfft::num_complex::Complex::new(*y, 0.0);
+    }
     rustfft::FftPlanner::new()
         .plan_fft_forward(size)
         .process(&mut buffer);
@@ -395,7 +414,8 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
         .map(|(w, _)| w)
         .ok_or_else(|| {
             IdentifyError(format!(
-                "{file}: x'' has no spectral peak to take for the excitation; give --omega."
+                "{file}: x'' has no spectral peak to take for the excitation{}; give --omega.",
+                crate::identify::blemish::because(&crate::identify::blemish::Scan::of(recording))
             ))
         })
 }
@@ -424,7 +444,17 @@ pub fn run<T: Real>(
     let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
         Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let mut rejections = Vec::new();
+    // Blemished samples are left out (the window restarts after them), each named.
+    let scan = crate::identify::blemish::Scan::of(recording);
+    rejections.extend(
+        scan.blemishes
+            .iter()
+            .map(|b| format!("{file}: {}", b.sentence())),
+    );
     for (i, s) in recording.samples().enumerate() {
+        if scan.skip[i] {
+            continue;
+        }
         let sample = Sample {
             t: s.t,
             x: T::from_f64(s.x),
@@ -444,17 +474,18 @@ pub fn run<T: Real>(
     let counters = *identifier.counters();
     let model = identifier.model().ok_or_else(|| {
         IdentifyError(format!(
-            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library{}.",
             counters.accepted,
-            counters.rejected(),
-            identifier.library().len()
+            counters.rejected() + scan.skipped() as u64,
+            identifier.library().len(),
+            crate::identify::blemish::because(&scan)
         ))
     })?;
     let mut report = report(
         model,
         &config,
         omega_estimated,
-        counters.rejected(),
+        counters.rejected() + scan.skipped() as u64,
         std::any::type_name::<T>(),
     );
     report.rejections = rejections;

@@ -129,7 +129,9 @@ pub fn track<T: Real>(
         .map(|t| t.name(config.omega).to_string())
         .collect();
     let mut snapshots = Vec::new();
-    for s in recording.samples() {
+    // Blemished samples are left out as `identify` leaves them out (`crate::identify::blemish`).
+    let skip = crate::identify::blemish::Scan::of(recording).skip;
+    for (s, _) in recording.samples().zip(&skip).filter(|(_, skip)| !**skip) {
         let sample = Sample {
             t: s.t,
             x: T::from_f64(s.x),

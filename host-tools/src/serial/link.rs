@@ -255,7 +255,12 @@ fn parenthesized(detail: &str) -> String {
 }
 
 /// A nak reason as words.
-pub fn nak_text(reason: NakReason) -> &'static str {
+pub fn nak_text(reason: NakReason) -> String {
+    if let NakReason::TooManyTerms { terms, capacity } = reason {
+        return format!(
+            "its library holds at most {capacity} terms, and the configuration asks for {terms}"
+        );
+    }
     match reason {
         NakReason::Crc => "a frame failed its CRC",
         NakReason::Decode => "a frame did not decode",
@@ -267,7 +272,9 @@ pub fn nak_text(reason: NakReason) -> &'static str {
         }
         NakReason::Busy => "it is busy",
         NakReason::VersionMismatch => "it speaks another protocol version",
+        NakReason::TooManyTerms { .. } => "its library is too small for the configuration",
     }
+    .to_owned()
 }
 
 /// What the link tells the person watching, as it happens.
@@ -827,6 +834,7 @@ impl<'a> Link<'a> {
                         }
                         NakReason::NotConfigured
                         | NakReason::BadConfig
+                        | NakReason::TooManyTerms { .. }
                         | NakReason::VersionMismatch => {
                             return Err(LinkError::Refused {
                                 port: self.port.clone(),

@@ -1,0 +1,462 @@
+//! Blemishes of a recording, found before it is identified: non-finite values, time gaps,
+//! and isolated spikes.
+//!
+//! Each blemished sample is left out, and the identifier restarts its derivative window after
+//! it, as a device does on a gap in time ([`lssi_core::Identifier`] restarts when a sample
+//! comes more than 1.5 periods after the previous one, so leaving a sample out is enough).
+//! The rules:
+//!
+//! - a sample with a NaN or infinite value (time or any channel) is left out;
+//! - a time step off the sample period by more than half a period is a blemish: a step
+//!   under half a period leaves the sample out (it is not after the previous one), a step
+//!   over one and a half periods is a gap (the window restarts);
+//! - an isolated spike is a sample whose distance from the cubic through its four neighbours,
+//!   r = s − (−s₋₂ + 4s₋₁ + 4s₊₁ − s₊₂)/6, is more than [`SPIKE_MADS`] robust standard
+//!   deviations (1.4826 · the median absolute deviation of r over the recording, at least the
+//!   channel's quantisation step) and at least [`SPIKE_DOMINANCE`] times its neighbours' r
+//!   (a spike of height h gives r = h at its sample and −2h/3 at its neighbours; a step gives
+//!   ±h/2 at two samples and is not a spike).
+//!
+//! The excitation frequency is estimated from windows within clean stretches only, and the
+//! derivative window from the clean samples (see [`crate::identify::configure`]).
+
+use std::ops::Range;
+
+use crate::recording::Recording;
+
+/// Robust standard deviations of r beyond which a sample is a spike.
+pub const SPIKE_MADS: f64 = 12.0;
+/// How much a spike's r must exceed its neighbours' (an isolated spike: 1.5).
+pub const SPIKE_DOMINANCE: f64 = 1.25;
+
+/// What is wrong with a sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// A NaN or infinite value.
+    NonFinite,
+    /// The time step from the previous sample exceeds 1.5 periods (the window restarts).
+    Gap,
+    /// The time step from the previous sample is under half a period (left out).
+    Early,
+    /// An isolated spike (left out).
+    Spike,
+}
+
+impl Kind {
+    /// What it is, in a few words (plural).
+    pub fn noun(self) -> &'static str {
+        match self {
+            Kind::NonFinite => "NaN or infinite values",
+            Kind::Gap => "time gaps",
+            Kind::Early => "samples less than half a period after the previous one",
+            Kind::Spike => "isolated spikes",
+        }
+    }
+}
+
+/// One blemish.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Blemish {
+    /// What.
+    pub kind: Kind,
+    /// The sample (0-based; data row `index + 1`).
+    pub index: usize,
+    /// Its time (NaN if that is what is wrong).
+    pub t: f64,
+    /// The gap's length in seconds, the spike's value, or the non-finite value.
+    pub value: f64,
+}
+
+impl Blemish {
+    /// One sentence (without the file name and the final period).
+    pub fn sentence(&self) -> String {
+        let row = self.index + 1;
+        match self.kind {
+            Kind::NonFinite => format!(
+                "data row {row} (t = {}): a NaN or infinite value; it was left out and the window restarted",
+                self.t
+            ),
+            Kind::Gap => format!(
+                "data row {row} (t = {}): a gap of {:.6} s in time before it; the window restarted",
+                self.t, self.value
+            ),
+            Kind::Early => format!(
+                "data row {row} (t = {}): only {:.3e} s after the previous sample (under half a period); it was left out",
+                self.t, self.value
+            ),
+            Kind::Spike => format!(
+                "data row {row} (t = {}): an isolated spike ({:e}); it was left out and the window restarted",
+                self.t, self.value
+            ),
+        }
+    }
+}
+
+/// The blemishes of a recording and what the identifier is to leave out.
+#[derive(Clone, Debug, Default)]
+pub struct Scan {
+    /// Median sample period (the identifier's), seconds; 0 when unknown.
+    pub dt: f64,
+    /// Per sample: left out.
+    pub skip: Vec<bool>,
+    /// Per sample: the window restarts before it (a gap, or a left-out sample before it).
+    pub restart: Vec<bool>,
+    /// Missing sample periods before each sample (a gap of Δt leaves round(Δt/dt) − 1).
+    pub missing: Vec<usize>,
+    /// Every blemish, in order.
+    pub blemishes: Vec<Blemish>,
+}
+
+/// The median of a slice (sorted in place); 0 when empty.
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+impl Scan {
+    /// Scans a recording.
+    pub fn of(recording: &Recording) -> Self {
+        let n = recording.len();
+        let t = &recording.t;
+        let mut channels: Vec<&[f64]> = vec![&recording.x];
+        channels.extend(recording.v.as_deref());
+        channels.extend(recording.u.as_deref());
+        let mut steps: Vec<f64> = t
+            .iter()
+            .copied()
+            .filter(|t| t.is_finite())
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d > 0.0)
+            .collect();
+        let dt = median(&mut steps);
+        let mut scan = Scan {
+            dt,
+            skip: vec![false; n],
+            restart: vec![false; n],
+            missing: vec![0; n],
+            blemishes: Vec::new(),
+        };
+        let finite = |i: usize| t[i].is_finite() && channels.iter().all(|c| c[i].is_finite());
+        let mut found: Vec<Blemish> = Vec::new();
+        for i in 0..n {
+            if !finite(i) {
+                scan.skip[i] = true;
+                let value = channels
+                    .iter()
+                    .map(|c| c[i])
+                    .find(|v| !v.is_finite())
+                    .unwrap_or(t[i]);
+                found.push(Blemish {
+                    kind: Kind::NonFinite,
+                    index: i,
+                    t: t[i],
+                    value,
+                });
+            }
+        }
+        if dt > 0.0 {
+            // Time steps, from the last sample with a finite time.
+            let mut last: Option<f64> = None;
+            for i in 0..n {
+                if !t[i].is_finite() {
+                    continue;
+                }
+                if let Some(prev) = last {
+                    let step = t[i] - prev;
+                    if step < 0.5 * dt {
+                        if !scan.skip[i] {
+                            scan.skip[i] = true;
+                            found.push(Blemish {
+                                kind: Kind::Early,
+                                index: i,
+                                t: t[i],
+                                value: step,
+                            });
+                        }
+                        continue;
+                    }
+                    if step > 1.5 * dt {
+                        scan.restart[i] = true;
+                        scan.missing[i] = ((step / dt).round() as usize).saturating_sub(1);
+                        found.push(Blemish {
+                            kind: Kind::Gap,
+                            index: i,
+                            t: t[i],
+                            value: step,
+                        });
+                    }
+                }
+                last = Some(t[i]);
+            }
+            for channel in &channels {
+                for i in spikes(channel, &scan) {
+                    if !scan.skip[i] {
+                        scan.skip[i] = true;
+                        found.push(Blemish {
+                            kind: Kind::Spike,
+                            index: i,
+                            t: t[i],
+                            value: channel[i],
+                        });
+                    }
+                }
+            }
+        }
+        for i in 1..n {
+            if scan.skip[i - 1] {
+                scan.restart[i] = true;
+            }
+        }
+        found.sort_by_key(|b| b.index);
+        scan.blemishes = found;
+        scan
+    }
+
+    /// No blemish at all.
+    pub fn is_clean(&self) -> bool {
+        self.blemishes.is_empty()
+    }
+
+    /// Samples left out.
+    pub fn skipped(&self) -> usize {
+        self.skip.iter().filter(|s| **s).count()
+    }
+
+    /// The clean stretches: runs of samples that are kept, without a restart inside.
+    pub fn stretches(&self) -> Vec<Range<usize>> {
+        let mut out = Vec::new();
+        let mut start: Option<usize> = None;
+        for i in 0..self.skip.len() {
+            if (self.skip[i] || self.restart[i])
+                && let Some(s) = start.take()
+            {
+                out.push(s..i);
+            }
+            if !self.skip[i] && start.is_none() {
+                start = Some(i);
+            }
+        }
+        if let Some(s) = start {
+            out.push(s..self.skip.len());
+        }
+        out
+    }
+
+    /// The length L such that the stretches at least L long hold half of the kept samples
+    /// (a weighted median): the stretch length the identifier typically sees.
+    pub fn typical_stretch(&self) -> usize {
+        let mut lengths: Vec<usize> = self.stretches().iter().map(|r| r.len()).collect();
+        lengths.sort_unstable_by(|a, b| b.cmp(a));
+        let total: usize = lengths.iter().sum();
+        let mut sum = 0;
+        for l in lengths {
+            sum += l;
+            if 2 * sum >= total {
+                return l;
+            }
+        }
+        0
+    }
+
+    /// One sentence per kind of blemish: how many, and the first rows.
+    pub fn summary(&self) -> Vec<String> {
+        let kinds = [Kind::NonFinite, Kind::Gap, Kind::Early, Kind::Spike];
+        kinds
+            .iter()
+            .filter_map(|&k| {
+                let rows: Vec<usize> = self
+                    .blemishes
+                    .iter()
+                    .filter(|b| b.kind == k)
+                    .map(|b| b.index + 1)
+                    .collect();
+                if rows.is_empty() {
+                    return None;
+                }
+                Some(format!(
+                    "{} {} ({})",
+                    rows.len(),
+                    k.noun(),
+                    where_text(&rows)
+                ))
+            })
+            .collect()
+    }
+}
+
+/// "data row 12" / "data rows 12 and 30" / "data rows 101, 301, 501, … 39901, every 200 rows".
+pub fn where_text(rows: &[usize]) -> String {
+    match rows {
+        [] => String::new(),
+        [r] => format!("data row {r}"),
+        [a, b] => format!("data rows {a} and {b}"),
+        _ => {
+            let shown: Vec<String> = rows.iter().take(3).map(|r| r.to_string()).collect();
+            let last = rows[rows.len() - 1];
+            let step = rows[1] - rows[0];
+            let regular = rows.windows(2).all(|w| w[1] - w[0] == step);
+            let tail = if rows.len() > 3 {
+                format!(", … {last}")
+            } else {
+                String::new()
+            };
+            let every = if regular && rows.len() > 3 {
+                format!(", every {step} rows")
+            } else {
+                String::new()
+            };
+            format!("data rows {}{tail}{every}", shown.join(", "))
+        }
+    }
+}
+
+/// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
+/// so far and whose four neighbours are kept and evenly spaced.
+fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
+    let n = s.len();
+    if n < 16 {
+        return Vec::new();
+    }
+    let usable = |i: usize| {
+        i >= 2
+            && i + 2 < n
+            && (i - 2..=i + 2).all(|j| !scan.skip[j] && s[j].is_finite())
+            && (i - 1..=i + 2).all(|j| !scan.restart[j])
+    };
+    let r: Vec<Option<f64>> = (0..n)
+        .map(|i| {
+            usable(i).then(|| {
+                s[i] - (-(s[i - 2] / 6.0) + s[i - 1] / 1.5 + s[i + 1] / 1.5 - s[i + 2] / 6.0)
+            })
+        })
+        .collect();
+    let mut values: Vec<f64> = r
+        .iter()
+        .flatten()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    if values.len() < 16 {
+        return Vec::new();
+    }
+    let centre = median(&mut values);
+    let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
+    let sigma = 1.4826 * median(&mut deviations);
+    // The quantisation step: the smallest non-zero difference of consecutive samples.
+    let quantum = s
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let scale = sigma.max(if quantum.is_finite() { quantum } else { 0.0 });
+    if !(scale > 0.0) {
+        return Vec::new();
+    }
+    let limit = SPIKE_MADS * scale;
+    let size = |i: usize| {
+        r.get(i)
+            .copied()
+            .flatten()
+            .map_or(0.0, |v| (v - centre).abs())
+    };
+    (2..n.saturating_sub(2))
+        .filter(|&i| {
+            let Some(ri) = r[i] else { return false };
+            let here = if ri.is_finite() {
+                (ri - centre).abs()
+            } else {
+                f64::INFINITY
+            };
+            let neighbours = size(i - 1).max(size(i + 1));
+            here > limit && here >= SPIKE_DOMINANCE * neighbours
+        })
+        .collect()
+}
+
+/// Which derivative windows lie within one clean stretch (no sample left out, no restart
+/// inside), and the missing periods before each sample: for the excitation's estimate.
+pub struct CleanWindows {
+    /// Prefix counts of left-out samples.
+    skipped: Vec<usize>,
+    /// Prefix counts of restarts.
+    restarts: Vec<usize>,
+    /// Prefix sums of missing periods.
+    missing: Vec<usize>,
+    n: usize,
+}
+
+impl CleanWindows {
+    /// For windows of `n` samples.
+    pub fn new(scan: &Scan, n: usize) -> Self {
+        let prefix = |f: &dyn Fn(usize) -> usize| {
+            let mut out = vec![0; scan.skip.len() + 1];
+            for i in 0..scan.skip.len() {
+                out[i + 1] = out[i] + f(i);
+            }
+            out
+        };
+        Self {
+            skipped: prefix(&|i| usize::from(scan.skip[i])),
+            restarts: prefix(&|i| usize::from(scan.restart[i])),
+            missing: prefix(&|i| scan.missing[i]),
+            n,
+        }
+    }
+
+    /// Whether the window of samples `start..start + n` is clean.
+    pub fn ok(&self, start: usize) -> bool {
+        let end = start + self.n;
+        end < self.skipped.len()
+            && self.skipped[end] == self.skipped[start]
+            && self.restarts[end] == self.restarts[start + 1]
+    }
+
+    /// Sample periods missing (in gaps) up to sample `i`.
+    pub fn missing_before(&self, i: usize) -> usize {
+        self.missing[(i + 1).min(self.missing.len() - 1)]
+    }
+}
+
+/// Refuses a recording whose clean stretches are too short for the configuration: shorter
+/// than the derivative window plus a test function (or 64 rows), so that every test-function
+/// sum would have a hole (measured: a NaN every 200 samples of `data/eveh-bistable.csv`,
+/// with a test function of 196, lost the damping term and a shorter test function did too). The refusal names the blemishes and where they are.
+pub fn refuse_if_broken(
+    scan: &Scan,
+    config: &lssi_core::Config,
+    path: &std::path::Path,
+) -> Result<(), crate::identify::IdentifyError> {
+    if scan.is_clean() {
+        return Ok(());
+    }
+    let needed = config.window + usize::from(config.test_rows).max(64);
+    let typical = scan.typical_stretch();
+    if typical >= needed {
+        return Ok(());
+    }
+    Err(crate::identify::IdentifyError(format!(
+        "{}: too broken to identify: {}; they leave clean stretches of typically {typical} samples ({:.4} s), and the identifier needs {needed} in a row (a derivative window of {} samples and a test function of {} rows).",
+        path.display(),
+        scan.summary().join(", "),
+        typical as f64 * scan.dt,
+        config.window,
+        usize::from(config.test_rows).max(64),
+    )))
+}
+
+/// For a refusal: " (the recording has …, left out)" naming the blemishes, or nothing.
+pub fn because(scan: &Scan) -> String {
+    if scan.is_clean() {
+        String::new()
+    } else {
+        format!(
+            " (the recording has {}, left out)",
+            scan.summary().join(", ")
+        )
+    }
+}
