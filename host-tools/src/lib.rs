@@ -29,6 +29,7 @@
 // Tests may panic on the unexpected: that is how they fail.
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
+pub mod adapt;
 pub mod commands;
 pub mod defmt;
 pub mod device;
@@ -40,6 +41,7 @@ pub mod noise;
 pub mod ode;
 pub mod output;
 pub mod plot;
+pub mod quantise;
 pub mod recording;
 pub mod refine;
 pub mod replay;

@@ -43,6 +43,7 @@
 )]
 
 mod batch;
+mod compact;
 mod device;
 mod error;
 mod frame;
@@ -50,6 +51,10 @@ mod host;
 pub mod size;
 
 pub use batch::{BatchRef, BatchSamples, Channels, SampleBatch, Samples, WireSample};
+pub use compact::{
+    CompactBatch, CompactRef, I16Encoding, MAX_COMPACT_BATCH, MAX_COMPACT_BYTES, MODEL_PART_LEN,
+    ModelPart, NOT_A_NUMBER, SampleEncoding, crc32c, model_part, snapshot_from_parts,
+};
 pub use device::{
     CostUnit, DeviceMsg, ModelSnapshot, NakReason, SnapshotCause, SolutionSummary, TermCode,
     TermKind,
@@ -71,7 +76,7 @@ pub use postcard::experimental::max_size::MaxSize;
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
 /// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0

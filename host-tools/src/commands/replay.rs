@@ -9,7 +9,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lssi_proto::ModelSnapshot;
 
@@ -19,9 +19,41 @@ use crate::device::{DEFAULT_FIRMWARE, DeviceProcess, SimOptions};
 use crate::error::CliError;
 use crate::identify::{self, Options};
 use crate::link::{Link, LinkOptions, LinkStats, Observer};
+use crate::quantise::{Quantised, quantise};
 use crate::recording::{ColumnNames, Recording};
-use crate::replay::{ReplayError, ReplayReport, render_link, replay_over, wire_config};
+use crate::replay::{
+    ReplayError, ReplayMode, ReplayReport, render_link, replay_over_with, wire_config,
+};
 use crate::telemetry::{RecordKind, TelemetryLog};
+
+/// How the samples cross the link (`--encoding`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Encoding {
+    /// t as f64 and the channels as f32: the recording as `lssi identify --f32` reads it
+    /// (12 bytes an x-only sample).
+    F32,
+    /// i16 fixed point with a scale per channel, times on a uniform grid (2 bytes an x-only
+    /// sample): the model is that of the quantised recording (`lssi identify --quantise i16`).
+    I16,
+}
+
+impl Encoding {
+    /// Most samples a batch of this encoding holds.
+    pub fn max_batch(self) -> usize {
+        match self {
+            Encoding::F32 => lssi_proto::MAX_BATCH,
+            Encoding::I16 => lssi_proto::MAX_COMPACT_BATCH,
+        }
+    }
+
+    /// The flag's value.
+    pub fn name(self) -> &'static str {
+        match self {
+            Encoding::F32 => "f32",
+            Encoding::I16 => "i16",
+        }
+    }
+}
 
 /// Arguments of `lssi replay`.
 #[derive(Debug, Clone, Args)]
@@ -62,9 +94,20 @@ pub struct ReplayArgs {
     /// Most sample batches unacknowledged at once.
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub window: usize,
-    /// Most samples per batch (at most 24).
-    #[arg(long, default_value_t = lssi_proto::MAX_BATCH, value_name = "N")]
-    pub batch: usize,
+    /// Most samples per batch (at most 24 with f32, 64 with i16; default: the most). The
+    /// link shortens its batches while it measures losses and lengthens them again.
+    #[arg(long, value_name = "N")]
+    pub batch: Option<usize>,
+    /// How the samples cross the link.
+    #[arg(long, value_enum, default_value_t = Encoding::F32)]
+    pub encoding: Encoding,
+    /// Continue a replay the device (on --port) has begun, from the last sample it applied,
+    /// without configuring it again (after a replay that gave up at its deadline).
+    #[arg(long, requires = "port")]
+    pub resume: bool,
+    /// Seconds the link goes on without progress before it gives up.
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+    pub deadline: f64,
     /// Base excitation frequency Ω in rad/s (default: estimated from the data).
     #[arg(long, value_name = "RAD_PER_S")]
     pub omega: Option<f64>,
@@ -156,8 +199,24 @@ impl ReplayArgs {
         if self.baud == 0 {
             return Err(bad("--baud", "0".into(), "a positive baud rate"));
         }
-        if !(1..=lssi_proto::MAX_BATCH).contains(&self.batch) {
-            return Err(bad("--batch", self.batch.to_string(), "between 1 and 24"));
+        let max_batch = self.encoding.max_batch();
+        let batch = self.batch.unwrap_or(max_batch);
+        if !(1..=max_batch).contains(&batch) {
+            return Err(bad(
+                "--batch",
+                batch.to_string(),
+                &format!(
+                    "between 1 and {max_batch} with --encoding {}",
+                    self.encoding.name()
+                ),
+            ));
+        }
+        if !(self.deadline > 0.0 && self.deadline <= 86_400.0) {
+            return Err(bad(
+                "--deadline",
+                self.deadline.to_string(),
+                "a positive number of seconds, at most a day",
+            ));
         }
         if !(1..=1024).contains(&self.window) {
             return Err(bad(
@@ -168,7 +227,8 @@ impl ReplayArgs {
         }
         let mut options = LinkOptions::for_baud(self.baud);
         options.window = self.window;
-        options.batch = self.batch;
+        options.batch = batch;
+        options.deadline = Duration::from_secs_f64(self.deadline);
         if self.qemu {
             // An emulated Cortex-M4 screens far slower than a host.
             options.timeout = Duration::from_secs(1);
@@ -287,6 +347,16 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     .transpose()?;
 
     let recording = Recording::read(&args.file, &args.columns)?;
+    // The compact encoding's quantisation is part of the recording: configured, streamed
+    // and reported as the quantised recording (what `lssi identify --quantise i16` reads).
+    let quantised: Option<Quantised> = match args.encoding {
+        Encoding::F32 => None,
+        Encoding::I16 => Some(quantise(&recording).map_err(CliError::Input)?),
+    };
+    let recording = match &quantised {
+        Some(q) => q.recording.clone(),
+        None => recording,
+    };
     let (config, estimated) =
         identify::configure(&recording, &options).map_err(|e| CliError::Identify(e.0))?;
     let wire = wire_config(&recording, &config).map_err(replay_error)?;
@@ -329,6 +399,8 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         "port": port_name,
         "baud": args.baud,
         "faults": {"flip_rate": args.flip_rate, "drop_rate": args.drop_rate, "burst": args.burst, "seed": args.seed},
+        "encoding": args.encoding.name(),
+        "resume": args.resume,
         "omega_estimated": estimated,
         "samples": recording.len(),
         "config": wire,
@@ -373,7 +445,11 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         if let Some(stdout) = qemu_stdout {
             link.attach_defmt(Box::new(stdout));
         }
-        let result = replay_over(&mut link, &recording, &config, estimated);
+        let mode = ReplayMode {
+            quantised: quantised.as_ref(),
+            resume: args.resume,
+        };
+        let result = replay_over_with(&mut link, &recording, &config, estimated, mode);
         if let Err(error) = &result {
             let _ = link.note(&format!("replay stopped: {error}"));
         }
@@ -396,6 +472,9 @@ fn print_report(report: &ReplayReport, json: bool) {
         crate::outln!("{}", serde_json::to_string(report).unwrap_or_default());
     } else {
         crate::out!("{}", identify::render(&report.report));
+        if let Some(quantisation) = &report.quantisation {
+            crate::out!("{}", quantisation.render());
+        }
         crate::out!("{}", render_link(&report.link));
     }
 }
@@ -424,12 +503,15 @@ pub struct ReplayBenchArgs {
     /// Baud rates to measure at.
     #[arg(long, value_delimiter = ',', default_values_t = [115_200u32, 921_600])]
     pub baud: Vec<u32>,
-    /// Samples per batch.
-    #[arg(long, default_value_t = lssi_proto::MAX_BATCH, value_name = "N")]
-    pub batch: usize,
+    /// Samples per batch (default: the most the encoding allows).
+    #[arg(long, value_name = "N")]
+    pub batch: Option<usize>,
     /// Batches unacknowledged at once.
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub window: usize,
+    /// Encodings to measure.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Encoding::F32, Encoding::I16])]
+    pub encoding: Vec<Encoding>,
 }
 
 /// Runs `lssi bench replay`: the whole recording through firmware-sim at each baud rate,
@@ -444,20 +526,26 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     crate::outln!(
         "lssi replay of {} through firmware-sim (pty paced at the baud rate, no faults), {} samples per batch, window {}\n",
         args.file.display(),
-        args.batch,
+        args.batch
+            .map_or_else(|| "the most".to_string(), |b| b.to_string()),
         args.window
     );
     crate::outln!(
-        "| baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |"
+        "| encoding | baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |"
     );
-    crate::outln!("|---:|---:|---:|---:|---:|---:|");
+    crate::outln!("|---|---:|---:|---:|---:|---:|---:|");
     let mut result = Ok(());
-    for &baud in &args.baud {
+    let runs = args
+        .encoding
+        .iter()
+        .flat_map(|&e| args.baud.iter().map(move |&b| (e, b)));
+    for (encoding, baud) in runs {
         let replay_args = ReplayArgs {
             baud,
-            log: Some(dir.join(format!("bench-{baud}.tlm"))),
+            log: Some(dir.join(format!("bench-{}-{baud}.tlm", encoding.name()))),
             window: args.window,
             batch: args.batch,
+            encoding,
             json: true,
             ..ReplayArgs::for_file(&args.file)?
         };
@@ -467,7 +555,8 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
                 let rate = link.samples_per_second();
                 let bound = link.bound(baud);
                 crate::outln!(
-                    "| {baud} | {:.2} | {rate:.0} | {bound:.0} | {:.1} | {} |",
+                    "| {} | {baud} | {:.2} | {rate:.0} | {bound:.0} | {:.1} | {} |",
+                    encoding.name(),
                     link.bytes_per_sample(),
                     if bound > 0.0 {
                         100.0 * rate / bound
