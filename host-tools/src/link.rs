@@ -1013,7 +1013,11 @@ impl<'a> Link<'a> {
             if in_flight.is_empty() {
                 break;
             }
-            let timeout = (self.rto().min(base_timeout) * backoff).min(4 * base_timeout);
+            // The measured round trip, but never less than twice the line time of what is in
+            // flight (the acks come behind it): a loaded host must not resend intact frames.
+            let in_line: usize = in_flight.iter().map(|b| b.frame.len()).sum();
+            let floor = 2 * self.options.line_time(in_line) + MIN_TIMEOUT;
+            let timeout = (self.rto().max(floor).min(base_timeout) * backoff).min(4 * base_timeout);
             let wait = timeout.saturating_sub(last_progress.elapsed());
             let event = self.receive(wait)?;
             match event {
