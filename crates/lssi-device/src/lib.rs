@@ -109,9 +109,9 @@ use core::cmp::Ordering;
 use lssi_core::{Config, Identifier, IdentifierSlot, Sample};
 pub use lssi_proto::CostUnit;
 use lssi_proto::{
-    BatchRef, CONTROL_SEQ, DeviceMsg, Error, HostCommand, MAX_BATCH, MAX_FRAME_LEN,
-    MAX_HOST_FRAME_LEN, MAX_LOG, MAX_TERMS, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig,
-    decode_host_frame, encode,
+    CONTROL_SEQ, DeviceMsg, Error, HostCommand, MAX_BATCH, MAX_FRAME_LEN, MAX_HOST_FRAME_LEN,
+    MAX_LOG, MAX_TERMS, NakReason, PROTOCOL_VERSION, SampleEncoding, SnapshotCause, WireConfig,
+    WireSample, decode_host_frame, encode,
 };
 
 /// Logs with defmt when the `defmt` feature is on; compiles to nothing otherwise.
@@ -284,6 +284,8 @@ pub struct Device<
     /// Configured in place: the identifier never exists on the stack.
     identifier: IdentifierSlot<f32, W, P, C>,
     next_seq: u32,
+    /// How sample batches travel, as the configuration in force says.
+    encoding: SampleEncoding,
     /// Samples were pushed since the last screening ran (or was attempted).
     dirty: bool,
     stats: Stats,
@@ -317,6 +319,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             skipping: false,
             identifier: IdentifierSlot::new(),
             next_seq: 0,
+            encoding: SampleEncoding::F32,
             dirty: false,
             stats: Stats {
                 watchdog: 0,
@@ -473,7 +476,26 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                     &mut self.next_seq,
                     &mut self.dirty,
                     &mut self.stats,
-                    batch,
+                    batch.seq,
+                    batch.iter(),
+                    meter,
+                );
+                return self.batch_replies(outcome, link);
+            }
+            Ok(HostCommand::Compact(batch)) => {
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                let SampleEncoding::I16(encoding) = self.encoding else {
+                    // Compact samples without the compact encoding configured.
+                    let seq = batch.seq;
+                    return self.nak(link, seq, NakReason::NotConfigured);
+                };
+                let outcome = Self::apply(
+                    &mut self.identifier,
+                    &mut self.next_seq,
+                    &mut self.dirty,
+                    &mut self.stats,
+                    batch.seq,
+                    batch.samples(&encoding),
                     meter,
                 );
                 return self.batch_replies(outcome, link);
@@ -484,8 +506,11 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                     HostCommand::Configure(config) => Command::Configure(config),
                     HostCommand::Query => Command::Query,
                     HostCommand::Reset => Command::Reset,
-                    // `Samples` is handled above.
-                    HostCommand::Hello { .. } | HostCommand::Samples(_) => Command::Hello,
+                    HostCommand::ModelPart { offset } => Command::ModelPart(offset),
+                    // `Samples` and `Compact` are handled above.
+                    HostCommand::Hello { .. }
+                    | HostCommand::Samples(_)
+                    | HostCommand::Compact(_) => Command::Hello,
                 }
             }
             Err(Error::VersionMismatch { theirs, .. }) => {
@@ -510,6 +535,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             Command::Configure(config) => self.configure(&config, link),
             Command::Query => self.query(link, meter),
             Command::Reset => self.reset(link),
+            Command::ModelPart(offset) => self.send_model_part(link, offset),
         }
     }
 
@@ -530,6 +556,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         config: &WireConfig,
         link: &mut L,
     ) -> Result<(), L::Error> {
+        let encoding = config.encoding;
         let config = wire::config_from_wire(config);
         // In place: the identifier is built (or rebuilt) where it lives, never on the
         // stack (its 9 KB and the derivative taps' 3 KB would come on top of the device's
@@ -537,6 +564,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         match self.identifier.configure(config) {
             Ok(_) => {
                 log!(info, "configured: {}", config);
+                self.encoding = encoding;
                 self.restarted();
                 self.ack(link, CONTROL_SEQ)
             }
@@ -580,21 +608,22 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         next_seq: &mut u32,
         dirty: &mut bool,
         stats: &mut Stats,
-        batch: BatchRef<'_>,
+        seq: u32,
+        samples: impl Iterator<Item = WireSample>,
         meter: &mut M,
     ) -> BatchOutcome {
         let Some(identifier) = identifier.get_mut() else {
-            return BatchOutcome::NotConfigured(batch.seq);
+            return BatchOutcome::NotConfigured(seq);
         };
-        match batch.seq.cmp(next_seq) {
+        match seq.cmp(next_seq) {
             Ordering::Less => {
                 stats.duplicates = stats.duplicates.wrapping_add(1);
-                BatchOutcome::Duplicate(batch.seq)
+                BatchOutcome::Duplicate(seq)
             }
             Ordering::Greater => BatchOutcome::OutOfOrder,
             Ordering::Equal => {
                 let mut screened = false;
-                for s in batch.iter() {
+                for s in samples {
                     let sample = Sample {
                         t: s.t,
                         x: s.x,
@@ -614,10 +643,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 }
                 // Saturates at CONTROL_SEQ, 4·10⁹ batches away: batches past it are naked.
                 *next_seq = next_seq.saturating_add(1);
-                BatchOutcome::Applied {
-                    seq: batch.seq,
-                    screened,
-                }
+                BatchOutcome::Applied { seq, screened }
             }
         }
     }
@@ -712,6 +738,23 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
+    /// Sends part `offset..` of the current model's bytes (`Nak NotConfigured` without a
+    /// model). The snapshot is encoded into the link buffer, the part copied out of it, and
+    /// the reply framed into the buffer again.
+    #[inline(never)]
+    fn send_model_part<L: Transport>(&mut self, link: &mut L, offset: u16) -> Result<(), L::Error> {
+        let snapshot = self
+            .identifier
+            .get()
+            .and_then(|id| id.model())
+            .and_then(|model| wire::snapshot(model, SnapshotCause::Query).ok());
+        let part = snapshot.and_then(|s| lssi_proto::model_part(&s, offset, &mut self.buffer));
+        match part {
+            Some(part) => self.send(link, &DeviceMsg::ModelPart(part)),
+            None => self.nak(link, CONTROL_SEQ, NakReason::NotConfigured),
+        }
+    }
+
     /// Frames `message` into the link buffer and writes it. Only between frames: the
     /// frame received last has been handled.
     fn send<L: Transport>(&mut self, link: &mut L, message: &DeviceMsg) -> Result<(), L::Error> {
@@ -730,6 +773,7 @@ enum Command {
     Configure(WireConfig),
     Query,
     Reset,
+    ModelPart(u16),
 }
 
 /// What became of a sample batch.

@@ -721,6 +721,21 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                     reason: NakReason::Busy,
                 },
             ),
+            // The instrument samples its own sensor: no host samples, no model in parts.
+            HostMsg::Compact(batch) => self.send(
+                link,
+                &DeviceMsg::Nak {
+                    seq: batch.seq,
+                    reason: NakReason::Busy,
+                },
+            ),
+            HostMsg::ModelPart { .. } => self.send(
+                link,
+                &DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason: NakReason::Busy,
+                },
+            ),
         }
     }
 

@@ -120,6 +120,8 @@ pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
         offsets: config.offsets,
         max_abs: config.max_abs,
         test_rows: config.test_rows,
+        // The host picks the compact encoding, if it wants one, after the conversion.
+        encoding: lssi_proto::SampleEncoding::F32,
     })
 }
 

@@ -126,6 +126,7 @@ fn wire_config() -> impl Strategy<Value = WireConfig> {
                 offsets,
                 max_abs,
                 test_rows,
+                encoding: lssi_proto::SampleEncoding::F32,
             },
         )
 }

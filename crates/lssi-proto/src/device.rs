@@ -1,13 +1,13 @@
 //! Device → host messages.
 
 use crate::size::{max_of, vec_max_size};
-use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS};
+use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 /// A message from the device to the host.
 ///
-/// The variant order is the wire discriminant (0..=5); see the README before changing it.
+/// The variant order is the wire discriminant (0..=6); see the README before changing it.
 ///
 /// What the device sends when is `lssi-device`'s contract (see its crate docs): every
 /// host command gets exactly one reply, except [`HostMsg::Query`](crate::HostMsg::Query),
@@ -100,6 +100,8 @@ pub enum DeviceMsg {
         /// The bytes, in the order the firmware's defmt logger produced them.
         bytes: heapless::Vec<u8, MAX_LOG>,
     },
+    /// Answers [`HostMsg::ModelPart`](crate::HostMsg::ModelPart). Since version 5.
+    ModelPart(ModelPart),
 }
 
 impl MaxSize for DeviceMsg {
@@ -118,6 +120,7 @@ impl MaxSize for DeviceMsg {
             + u16::POSTCARD_MAX_SIZE
             + f32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
+        ModelPart::POSTCARD_MAX_SIZE,
     ]);
 }
 

@@ -16,6 +16,7 @@
 //! ```
 
 use crate::batch::BatchHeader;
+use crate::compact::CompactRef;
 use crate::{
     BatchRef, CRC_LEN, DeviceMsg, Error, HostCommand, HostMsg, Message, PROTOCOL_VERSION,
     WireConfig,
@@ -27,7 +28,7 @@ use postcard::ser_flavors::{Cobs, Slice};
 use serde::Deserialize;
 
 /// CRC-32C (Castagnoli; the iSCSI parameters), table-driven: 1 KiB of flash.
-static CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+pub(crate) static CRC32C: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
 
 /// Frames `message` into `out`; returns the frame's length, trailing `0x00` included.
 ///
@@ -112,6 +113,9 @@ pub fn decode_host_frame(frame: &mut [u8]) -> Result<HostCommand<'_>, Error> {
         }
         HostShape::Query => HostCommand::Query,
         HostShape::Reset => HostCommand::Reset,
+        HostShape::Compact(batch) if batch.is_well_formed() => HostCommand::Compact(batch),
+        HostShape::Compact(_) => return Err(Error::Decode),
+        HostShape::ModelPart { offset } => HostCommand::ModelPart { offset },
     })
 }
 
@@ -141,12 +145,19 @@ fn checked_payload(frame: &mut [u8]) -> Result<&[u8], Error> {
 /// same variants in the same order, so postcard accepts exactly what it accepts for
 /// [`HostMsg`].
 #[derive(Deserialize)]
-enum HostShape {
-    Hello { protocol_version: u16 },
+enum HostShape<'a> {
+    Hello {
+        protocol_version: u16,
+    },
     Configure(WireConfig),
     Samples(BatchHeader),
     Query,
     Reset,
+    #[serde(borrow)]
+    Compact(CompactRef<'a>),
+    ModelPart {
+        offset: u16,
+    },
 }
 
 /// Reassembles frames from a byte stream cut into any chunks, with an `N`-byte buffer.

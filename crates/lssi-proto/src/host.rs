@@ -1,12 +1,12 @@
 //! Host → device messages.
 
-use crate::{BatchRef, SampleBatch};
+use crate::{BatchRef, CompactBatch, CompactRef, SampleBatch, SampleEncoding};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 /// A message from the host to the device.
 ///
-/// The variant order is the wire discriminant (0..=4); see the README before changing it.
+/// The variant order is the wire discriminant (0..=6); see the README before changing it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[allow(
@@ -29,6 +29,16 @@ pub enum HostMsg {
     Query,
     /// Drops the identifier's state; the configuration stays.
     Reset,
+    /// Samples in the compact encoding ([`SampleEncoding::I16`]), applied like
+    /// [`HostMsg::Samples`] (the same sequence numbers). Since version 5.
+    Compact(CompactBatch),
+    /// Asks for part `offset..` of the current model's bytes: the device answers
+    /// [`DeviceMsg::ModelPart`](crate::DeviceMsg::ModelPart) (`Nak NotConfigured` without a
+    /// model). Since version 5.
+    ModelPart {
+        /// Offset in the snapshot's postcard bytes.
+        offset: u16,
+    },
 }
 
 /// A [`HostMsg`] decoded in place by [`decode_host_frame`](crate::decode_host_frame): a
@@ -49,6 +59,13 @@ pub enum HostCommand<'a> {
     Query,
     /// [`HostMsg::Reset`].
     Reset,
+    /// [`HostMsg::Compact`], read from the frame's bytes.
+    Compact(CompactRef<'a>),
+    /// [`HostMsg::ModelPart`].
+    ModelPart {
+        /// Offset in the snapshot's postcard bytes.
+        offset: u16,
+    },
 }
 
 impl HostCommand<'_> {
@@ -60,6 +77,8 @@ impl HostCommand<'_> {
             HostCommand::Samples(batch) => HostMsg::Samples(batch.to_batch()),
             HostCommand::Query => HostMsg::Query,
             HostCommand::Reset => HostMsg::Reset,
+            HostCommand::Compact(batch) => HostMsg::Compact(batch.to_batch()),
+            HostCommand::ModelPart { offset } => HostMsg::ModelPart { offset },
         }
     }
 }
@@ -129,4 +148,6 @@ pub struct WireConfig {
     pub max_abs: f64,
     /// Rows per test function (the weak form; 0: every row as it is). Since version 3.
     pub test_rows: u16,
+    /// How the sample batches travel. Since version 5.
+    pub encoding: SampleEncoding,
 }

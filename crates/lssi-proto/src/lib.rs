@@ -43,6 +43,7 @@
 )]
 
 mod batch;
+mod compact;
 mod device;
 mod error;
 mod frame;
@@ -50,6 +51,10 @@ mod host;
 pub mod size;
 
 pub use batch::{BatchRef, BatchSamples, Channels, SampleBatch, Samples, WireSample};
+pub use compact::{
+    CompactBatch, CompactRef, I16Encoding, MAX_COMPACT_BATCH, MAX_COMPACT_BYTES, MODEL_PART_LEN,
+    ModelPart, NOT_A_NUMBER, SampleEncoding, crc32c, model_part, snapshot_from_parts,
+};
 pub use device::{
     CostUnit, DeviceMsg, ModelSnapshot, NakReason, SnapshotCause, SolutionSummary, TermCode,
     TermKind,

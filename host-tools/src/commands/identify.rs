@@ -9,7 +9,7 @@
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::commands::identifier::IdentifierArgs;
@@ -18,6 +18,14 @@ use crate::identify::track::{self, TrackOptions};
 use crate::identify::{self, Options, batch};
 use crate::recording::{ColumnNames, Recording};
 use crate::synth::truth::Truth;
+
+/// A quantisation of the recording (`--quantise`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Quantise {
+    /// i16 fixed point with a scale per channel, times on a uniform grid (`lssi replay
+    /// --encoding i16`).
+    I16,
+}
 
 /// Arguments of `lssi identify`.
 #[derive(Debug, Clone, Args)]
@@ -56,6 +64,11 @@ pub struct IdentifyArgs {
     /// the device protocol does not carry it)
     #[arg(long)]
     pub noise_correction: bool,
+    /// Identify the recording as `lssi replay --encoding i16` sends it: times on a uniform
+    /// grid, values rounded to i16 quanta (one scale per channel), so the model is the one
+    /// a compact replay must give.
+    #[arg(long, value_enum, value_name = "ENCODING", conflicts_with_all = ["more", "csv"])]
+    pub quantise: Option<Quantise>,
     /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
     #[arg(long)]
     pub json: bool,
@@ -155,7 +168,12 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);
     }
-    let recording = Recording::read(&args.file, &args.columns)?;
+    let mut recording = Recording::read(&args.file, &args.columns)?;
+    if args.quantise == Some(Quantise::I16) {
+        let quantised = crate::serial::quantise::quantise(&recording).map_err(CliError::Input)?;
+        eprint!("lssi: {}", quantised.summary.render());
+        recording = quantised.recording;
+    }
     if args.track {
         return run_track(args, &recording, &options);
     }

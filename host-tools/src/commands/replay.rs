@@ -9,7 +9,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use crate::commands::identifier::IdentifierArgs;
 use crate::error::CliError;
@@ -19,6 +19,35 @@ use crate::serial::device::{DEFAULT_FIRMWARE, SimOptions};
 use crate::serial::link::LinkOptions;
 use crate::serial::replay::{ReplayReport, render_link};
 use crate::serial::session::{self, Device, Setup};
+
+/// How the samples cross the link (`--encoding`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Encoding {
+    /// t as f64 and the channels as f32: the recording as `lssi identify --f32` reads it
+    /// (12 bytes an x-only sample).
+    F32,
+    /// i16 fixed point with a scale per channel, times on a uniform grid (2 bytes an x-only
+    /// sample): the model is that of the quantised recording (`lssi identify --quantise i16`).
+    I16,
+}
+
+impl Encoding {
+    /// Most samples a batch of this encoding holds.
+    pub fn max_batch(self) -> usize {
+        match self {
+            Encoding::F32 => lssi_proto::MAX_BATCH,
+            Encoding::I16 => lssi_proto::MAX_COMPACT_BATCH,
+        }
+    }
+
+    /// The flag's value.
+    pub fn name(self) -> &'static str {
+        match self {
+            Encoding::F32 => "f32",
+            Encoding::I16 => "i16",
+        }
+    }
+}
 
 /// Arguments of `lssi replay`.
 #[derive(Debug, Clone, Args)]
@@ -59,9 +88,20 @@ pub struct ReplayArgs {
     /// Most sample batches unacknowledged at once.
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub window: usize,
-    /// Most samples per batch (at most 24).
-    #[arg(long, default_value_t = lssi_proto::MAX_BATCH, value_name = "N")]
-    pub batch: usize,
+    /// Most samples per batch (at most 24 with f32, 64 with i16; default: the most). The
+    /// link shortens its batches while it measures losses and lengthens them again.
+    #[arg(long, value_name = "N")]
+    pub batch: Option<usize>,
+    /// How the samples cross the link.
+    #[arg(long, value_enum, default_value_t = Encoding::F32)]
+    pub encoding: Encoding,
+    /// Continue a replay the device (on --port) has begun, from the last sample it applied,
+    /// without configuring it again (after a replay that gave up at its deadline).
+    #[arg(long, requires = "port")]
+    pub resume: bool,
+    /// Seconds the link goes on without progress before it gives up.
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+    pub deadline: f64,
     /// The identifier's flags (shared with `lssi identify`).
     #[command(flatten)]
     pub identifier: IdentifierArgs,
@@ -103,8 +143,24 @@ impl ReplayArgs {
         if self.baud == 0 {
             return Err(bad("--baud", "0".into(), "a positive baud rate"));
         }
-        if !(1..=lssi_proto::MAX_BATCH).contains(&self.batch) {
-            return Err(bad("--batch", self.batch.to_string(), "between 1 and 24"));
+        let max_batch = self.encoding.max_batch();
+        let batch = self.batch.unwrap_or(max_batch);
+        if !(1..=max_batch).contains(&batch) {
+            return Err(bad(
+                "--batch",
+                batch.to_string(),
+                &format!(
+                    "between 1 and {max_batch} with --encoding {}",
+                    self.encoding.name()
+                ),
+            ));
+        }
+        if !(self.deadline > 0.0 && self.deadline <= 86_400.0) {
+            return Err(bad(
+                "--deadline",
+                self.deadline.to_string(),
+                "a positive number of seconds, at most a day",
+            ));
         }
         if !(1..=1024).contains(&self.window) {
             return Err(bad(
@@ -115,7 +171,8 @@ impl ReplayArgs {
         }
         let mut options = LinkOptions::for_baud(self.baud);
         options.window = self.window;
-        options.batch = self.batch;
+        options.batch = batch;
+        options.deadline = Duration::from_secs_f64(self.deadline);
         if self.qemu {
             // An emulated Cortex-M4 screens far slower than a host.
             options.timeout = Duration::from_secs(1);
@@ -195,6 +252,8 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         elf: args.elf.clone(),
         log: args.log_path(),
         progress: std::io::stderr().is_terminal() && !args.json,
+        quantise: args.encoding == Encoding::I16,
+        resume: args.resume,
     };
     session::replay(&setup)
 }
@@ -204,6 +263,9 @@ fn print_report(report: &ReplayReport, json: bool) {
         crate::outln!("{}", serde_json::to_string(report).unwrap_or_default());
     } else {
         crate::out!("{}", identify::render(&report.report));
+        if let Some(quantisation) = &report.quantisation {
+            crate::out!("{}", quantisation.render());
+        }
         crate::out!("{}", render_link(&report.link));
     }
 }
@@ -217,9 +279,12 @@ pub struct ReplayBenchArgs {
     /// Baud rates to measure at.
     #[arg(long, value_delimiter = ',', default_values_t = [115_200u32, 921_600])]
     pub baud: Vec<u32>,
-    /// Samples per batch.
-    #[arg(long, default_value_t = lssi_proto::MAX_BATCH, value_name = "N")]
-    pub batch: usize,
+    /// Samples per batch (default: the most the encoding allows).
+    #[arg(long, value_name = "N")]
+    pub batch: Option<usize>,
+    /// Encodings to measure.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Encoding::F32, Encoding::I16])]
+    pub encoding: Vec<Encoding>,
     /// Batches unacknowledged at once.
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub window: usize,
@@ -237,18 +302,24 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     crate::outln!(
         "lssi replay of {} through firmware-sim (pty paced at the baud rate, no faults), {} samples per batch, window {}\n",
         args.file.display(),
-        args.batch,
+        args.batch
+            .map_or_else(|| "the most".to_string(), |b| b.to_string()),
         args.window
     );
     crate::outln!(
-        "| baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |"
+        "| encoding | baud | bytes/sample | samples/s | bound (samples/s) | % of bound | retransmits |"
     );
-    crate::outln!("|---:|---:|---:|---:|---:|---:|");
+    crate::outln!("|---|---:|---:|---:|---:|---:|---:|");
     let mut result = Ok(());
-    for &baud in &args.baud {
+    let runs = args
+        .encoding
+        .iter()
+        .flat_map(|&e| args.baud.iter().map(move |&b| (e, b)));
+    for (encoding, baud) in runs {
         let replay_args = ReplayArgs {
             baud,
-            log: Some(dir.join(format!("bench-{baud}.tlm"))),
+            log: Some(dir.join(format!("bench-{}-{baud}.tlm", encoding.name()))),
+            encoding,
             window: args.window,
             batch: args.batch,
             json: true,
@@ -260,7 +331,8 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
                 let rate = link.samples_per_second();
                 let bound = link.bound(baud);
                 crate::outln!(
-                    "| {baud} | {:.2} | {rate:.0} | {bound:.0} | {:.1} | {} |",
+                    "| {} | {baud} | {:.2} | {rate:.0} | {bound:.0} | {:.1} | {} |",
+                    encoding.name(),
                     link.bytes_per_sample(),
                     if bound > 0.0 {
                         100.0 * rate / bound

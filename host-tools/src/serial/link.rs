@@ -35,9 +35,10 @@ use std::time::{Duration, Instant};
 use lssi_proto::{
     CONTROL_SEQ, Channels, DeviceMsg, HostMsg, MAX_DEVICE_FRAME_LEN, MAX_FRAME_LEN, ModelSnapshot,
     NakReason, PROTOCOL_VERSION, SampleBatch, SnapshotCause, WireConfig, WireSample, decode_frame,
-    encode,
+    encode, snapshot_from_parts,
 };
 
+use crate::serial::adapt::Adapt;
 use crate::telemetry::{RecordKind, TelemetryLog, now_us};
 
 /// How the link paces itself.
@@ -53,6 +54,9 @@ pub struct LinkOptions {
     pub timeout: Duration,
     /// How long the device may send nothing at all before the link gives up.
     pub silence: Duration,
+    /// How long the link goes on without progress (no sample acknowledged, no request
+    /// answered) before it gives up, saying what it measured.
+    pub deadline: Duration,
 }
 
 impl LinkOptions {
@@ -64,6 +68,7 @@ impl LinkOptions {
             batch: lssi_proto::MAX_BATCH,
             timeout: Duration::from_millis(200),
             silence: Duration::from_secs(10),
+            deadline: Duration::from_secs(60),
         }
     }
 
@@ -108,6 +113,20 @@ pub struct LinkStats {
     pub samples_acked: u64,
     /// Seconds from the first batch to the last acknowledgement.
     pub stream_seconds: f64,
+    /// Times the link went back and resent the batches in flight (after a nak or a timeout).
+    pub go_backs: u64,
+    /// The byte error rate those losses imply, recently (what the batch length follows).
+    pub byte_error_rate: f64,
+    /// The batch length and window in use at the end.
+    pub batch_len: usize,
+    /// The window in use at the end.
+    pub window: usize,
+    /// Requests (commands, queries, model parts) sent again after a timeout.
+    pub requests_resent: u64,
+    /// Parts of the model fetched because a whole Model frame did not cross.
+    pub model_parts: u64,
+    /// The smoothed round trip of a batch, in milliseconds (what the waits follow).
+    pub round_trip_ms: f64,
 }
 
 impl LinkStats {
@@ -234,6 +253,29 @@ pub enum LinkError {
         sent: u64,
         /// Samples the device counted.
         counted: u64,
+    },
+    /// No progress for the whole deadline: the line is too poor (or the device too slow).
+    #[error(
+        "{port}: no progress for {:.1} s while the host waited for {waiting_for}, so it gives up: {:.1} % of the frames it sent were lost (a byte error rate of about {:.2} %); the device had acknowledged {acked} of {samples} samples, and `lssi replay --resume --port {port}` continues from there",
+        .waited.as_secs_f64(),
+        100.0 * .frame_loss,
+        100.0 * .byte_error_rate
+    )]
+    Deadline {
+        /// The port.
+        port: String,
+        /// What the host was waiting for.
+        waiting_for: &'static str,
+        /// How long it went on without progress.
+        waited: Duration,
+        /// Fraction of the frames sent that were lost.
+        frame_loss: f64,
+        /// The byte error rate that implies.
+        byte_error_rate: f64,
+        /// Samples the device had acknowledged: the next replay with `--resume` starts there.
+        acked: u64,
+        /// Samples in the recording.
+        samples: u64,
     },
     /// The telemetry log could not be written.
     #[error("{}: cannot append to the telemetry log: {source}", .path.display())]
@@ -391,9 +433,6 @@ impl Drop for Reader {
     }
 }
 
-/// The shortest batch the adaptation goes down to (a frame of 4 samples is ~70 bytes).
-const MIN_ADAPTIVE_BATCH: usize = 1;
-
 /// One batch on the wire, kept until acknowledged.
 #[derive(Debug)]
 struct InFlight {
@@ -402,7 +441,60 @@ struct InFlight {
     samples: usize,
     /// Index of its first sample in the stream.
     start: usize,
+    /// When it was sent, and whether only once (Karn: only those time the round trip).
+    sent: Instant,
+    once: bool,
 }
+
+/// Where the samples of a stream come from: batches framed on demand.
+pub trait BatchSource {
+    /// Samples in the stream.
+    fn len(&self) -> usize;
+    /// Whether there are none.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Most samples in one batch.
+    fn max_batch(&self) -> usize;
+    /// Wire bytes a sample costs in a batch.
+    fn bytes_per_sample(&self) -> usize;
+    /// The frame of batch `seq` holding at most `max` samples from sample `from`, and how
+    /// many it holds (at least one while `from` is a sample).
+    fn frame(&self, seq: u32, from: usize, max: usize) -> (Vec<u8>, usize);
+}
+
+/// Samples sent as they are: t as f64, the channels as f32 ([`HostMsg::Samples`]).
+#[derive(Clone, Copy, Debug)]
+pub struct F32Samples<'a>(pub &'a [WireSample]);
+
+impl BatchSource for F32Samples<'_> {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    fn max_batch(&self) -> usize {
+        lssi_proto::MAX_BATCH
+    }
+
+    fn bytes_per_sample(&self) -> usize {
+        self.0
+            .first()
+            .map_or(Channels::X, Channels::of)
+            .bytes_per_sample()
+    }
+
+    fn frame(&self, seq: u32, from: usize, max: usize) -> (Vec<u8>, usize) {
+        let max = max.clamp(1, lssi_proto::MAX_BATCH);
+        let chunk = self
+            .0
+            .get(from..(from + max).min(self.0.len()))
+            .unwrap_or(&[]);
+        (batch_frame(seq, chunk), chunk.len())
+    }
+}
+
+/// The shortest wait before resending a batch, however fast the round trip measures.
+const MIN_TIMEOUT: Duration = Duration::from_millis(4);
 
 /// What a received frame means for the caller.
 #[allow(
@@ -426,6 +518,14 @@ pub struct Link<'a> {
     last_heard: Instant,
     health: Option<Health>,
     started: Option<Instant>,
+    /// Smoothed round trip of a batch (sent to acknowledged), once measured.
+    srtt: Option<Duration>,
+    /// Its mean deviation.
+    rttvar: Duration,
+    /// The error-rate estimate of the last stream.
+    adapt: Option<Adapt>,
+    /// When the link last made progress (a sample acknowledged, a request answered).
+    progress: Instant,
 }
 
 impl fmt::Debug for Link<'_> {
@@ -462,6 +562,10 @@ impl<'a> Link<'a> {
             last_heard: Instant::now(),
             health: None,
             started: None,
+            srtt: None,
+            rttvar: Duration::ZERO,
+            adapt: None,
+            progress: Instant::now(),
         }
     }
 
@@ -614,14 +718,19 @@ impl<'a> Link<'a> {
         }
     }
 
-    /// Sends `message` until `answer` accepts a reply (resending after each timeout).
+    /// Sends `message` until `answer` accepts a reply, resending after each timeout (a
+    /// request or its reply lost or damaged on the line), until the deadline passes without
+    /// progress or the device falls silent.
     fn command<R>(
         &mut self,
         message: &HostMsg,
         waiting_for: &'static str,
         mut answer: impl FnMut(&DeviceMsg) -> Option<Result<R, LinkError>>,
     ) -> Result<R, LinkError> {
-        let mut timeout = self.options.timeout;
+        // The first wait follows the measured round trip; it doubles while nothing answers
+        // (a device that screens before answering takes longer than a batch's ack).
+        let longest = self.options.timeout.max(MIN_TIMEOUT) * 4;
+        let mut timeout = self.rto().min(longest);
         let asked = Instant::now();
         self.last_heard = asked;
         loop {
@@ -631,23 +740,71 @@ impl<'a> Link<'a> {
                 match self.receive(left)? {
                     Some(Event::Message(reply)) => {
                         if let Some(result) = answer(&reply) {
+                            self.progress = Instant::now();
                             return result;
                         }
                     }
                     Some(Event::Nothing) | None => {}
                 }
             }
-            if self.last_heard.elapsed() >= self.options.silence
-                || asked.elapsed() >= self.options.silence
-            {
+            if self.last_heard.elapsed() >= self.options.silence {
                 return Err(LinkError::Silent {
                     port: self.port.clone(),
                     waiting_for,
-                    waited: asked.elapsed(),
+                    waited: self.last_heard.elapsed(),
                 });
             }
+            if asked.elapsed() >= self.options.deadline {
+                return Err(self.deadline(waiting_for, asked.elapsed()));
+            }
             self.stats.timeouts += 1;
-            timeout = (timeout * 2).min(self.options.silence / 4);
+            self.stats.requests_resent += 1;
+            timeout = (timeout * 2).min(longest);
+        }
+    }
+
+    /// The wait for an answer the round trip measured so far calls for (the configured
+    /// timeout until one is measured).
+    fn rto(&self) -> Duration {
+        match self.srtt {
+            // Jacobson's: the mean round trip and four times its mean deviation.
+            Some(srtt) => {
+                (srtt + 4 * self.rttvar).clamp(MIN_TIMEOUT, self.options.timeout.max(MIN_TIMEOUT))
+            }
+            None => self.options.timeout,
+        }
+    }
+
+    /// Takes a round trip measured on a batch sent once (RFC 6298's smoothing).
+    fn measured(&mut self, rtt: Duration) {
+        match self.srtt {
+            None => {
+                self.srtt = Some(rtt);
+                self.rttvar = rtt / 2;
+            }
+            Some(srtt) => {
+                let deviation = srtt.abs_diff(rtt);
+                self.rttvar = (self.rttvar * 3 + deviation) / 4;
+                self.srtt = Some((srtt * 7 + rtt) / 8);
+            }
+        }
+        self.stats.round_trip_ms = self.srtt.map_or(0.0, |d| d.as_secs_f64() * 1e3);
+    }
+
+    /// The error that ends a link without progress, with what it measured.
+    fn deadline(&self, waiting_for: &'static str, waited: Duration) -> LinkError {
+        let (frame_loss, byte_error_rate) = match &self.adapt {
+            Some(adapt) => (adapt.frame_loss(), adapt.byte_error_rate()),
+            None => (0.0, 0.0),
+        };
+        LinkError::Deadline {
+            port: self.port.clone(),
+            waiting_for,
+            waited,
+            frame_loss,
+            byte_error_rate,
+            acked: self.stats.samples_acked,
+            samples: self.stats.samples,
         }
     }
 
@@ -714,17 +871,32 @@ impl<'a> Link<'a> {
 
     /// Streams `samples` in batches numbered from 0, every one applied exactly once.
     pub fn stream(&mut self, samples: &[WireSample]) -> Result<(), LinkError> {
-        let max_batch = self.options.batch.clamp(1, lssi_proto::MAX_BATCH);
-        // The batch length adapts to the line (halved on every loss, doubled after a run of
-        // clean acknowledgements): at 0.2 % damaged bytes, half of the full 400-byte frames
-        // are hit, and go-back-N resends the whole window for each.
-        let mut batch_len = max_batch;
-        let mut clean = 0usize;
-        let window = self.options.window.max(1);
-        self.stats.samples = samples.len() as u64;
-        let mut next = 0usize;
-        let mut offset = 0usize;
-        let mut in_flight: VecDeque<InFlight> = VecDeque::with_capacity(window);
+        self.stream_from(&F32Samples(samples), 0, 0)
+    }
+
+    /// Streams the samples of `source` from sample `from` on, in batches numbered from
+    /// `first_seq` (0 and 0 after `Configure`; where the device is, for `--resume`), every
+    /// one applied exactly once.
+    ///
+    /// The batch length and the window follow the error rate measured on the way
+    /// ([`Adapt`]): shorter batches and a smaller window when frames are lost, the longest
+    /// and the full window when the line is clean. Waits follow the measured round trip.
+    pub fn stream_from(
+        &mut self,
+        source: &dyn BatchSource,
+        from: usize,
+        first_seq: u32,
+    ) -> Result<(), LinkError> {
+        let max_batch = self.options.batch.clamp(1, source.max_batch());
+        let max_window = self.options.window.max(1);
+        let mut adapt = Adapt::new(source.bytes_per_sample(), max_batch, max_window);
+        let (mut batch_len, mut window) = adapt.choose();
+        self.stats.samples = source.len() as u64;
+        self.stats.samples_acked = from as u64;
+        self.stats.samples_sent = self.stats.samples_sent.max(from as u64);
+        let mut next = first_seq as usize;
+        let mut offset = from;
+        let mut in_flight: VecDeque<InFlight> = VecDeque::with_capacity(max_window);
         // After a go-back to `s`, the batches that were behind the lost one are naked with `s`
         // once each before the resent ones arrive: that many naks of `s` say nothing new.
         let mut stale: Option<(u32, usize)> = None;
@@ -732,18 +904,19 @@ impl<'a> Link<'a> {
         let base_timeout = self.options.timeout.max(
             4 * self
                 .options
-                .line_time(window * lssi_proto::MAX_HOST_FRAME_LEN),
+                .line_time(max_window * lssi_proto::MAX_HOST_FRAME_LEN),
         );
-        let mut timeout = base_timeout;
+        let mut backoff = 1u32;
         let mut last_progress = Instant::now();
         let started = Instant::now();
         self.started = Some(started);
         self.last_heard = started;
+        self.progress = started;
         loop {
             if resend {
                 resend = false;
-                batch_len = (batch_len / 2).max(MIN_ADAPTIVE_BATCH.min(max_batch));
-                clean = 0;
+                (batch_len, window) = adapt.choose();
+                self.stats.go_backs += 1;
                 // Frames longer than the line now carries are resent in shorter batches, from
                 // the first sample the device has not applied (asked for: its Health counts
                 // them), numbered on from the sequence number it expects there. Only then is
@@ -756,62 +929,96 @@ impl<'a> Link<'a> {
                     offset = start;
                     stale = None;
                     last_progress = Instant::now();
-                    timeout = base_timeout;
+                    backoff = 1;
                     self.stats.rechunks += 1;
                     continue;
                 }
+                // Go-back-N: every batch in flight again (at most the window now allows;
+                // the rest follow as acks come).
+                let now = Instant::now();
                 for i in 0..in_flight.len() {
                     let frame = std::mem::take(&mut in_flight[i].frame);
                     let result = self.write_bytes(&frame);
                     in_flight[i].frame = frame;
+                    in_flight[i].sent = now;
+                    in_flight[i].once = false;
                     result?;
+                    adapt.sent(in_flight[i].frame.len());
                     self.stats.frames_sent += 1;
                     self.stats.retransmits += 1;
                 }
                 self.observer.progress(&self.stats);
             }
-            while in_flight.len() < window && offset < samples.len() {
-                let chunk = &samples[offset..(offset + batch_len).min(samples.len())];
-                offset += chunk.len();
+            while in_flight.len() < window && offset < source.len() {
                 let seq = next as u32;
-                let frame = batch_frame(seq, chunk);
+                let (frame, taken) = source.frame(seq, offset, batch_len);
+                if taken == 0 {
+                    break;
+                }
                 self.write_bytes(&frame)?;
+                adapt.sent(frame.len());
                 self.stats.frames_sent += 1;
-                self.stats.sample_bytes += frame.len() as u64;
-                self.stats.samples_sent += chunk.len() as u64;
+                // First sendings only: after a resync, the part of a batch sent before is
+                // not counted again (its bytes pro rata).
+                let end = (offset + taken) as u64;
+                if end > self.stats.samples_sent {
+                    let new = end - self.stats.samples_sent.max(offset as u64);
+                    self.stats.sample_bytes += frame.len() as u64 * new / taken as u64;
+                    self.stats.samples_sent = end;
+                }
                 in_flight.push_back(InFlight {
                     seq,
                     frame,
-                    samples: chunk.len(),
-                    start: offset - chunk.len(),
+                    samples: taken,
+                    start: offset,
+                    sent: Instant::now(),
+                    once: true,
                 });
+                offset += taken;
                 next += 1;
             }
             if in_flight.is_empty() {
                 break;
             }
+            // The measured round trip, but never less than twice the line time of what is in
+            // flight (the acks come behind it): a loaded host must not resend intact frames.
+            let in_line: usize = in_flight.iter().map(|b| b.frame.len()).sum();
+            let floor = 2 * self.options.line_time(in_line) + MIN_TIMEOUT;
+            let timeout = (self.rto().max(floor).min(base_timeout) * backoff).min(4 * base_timeout);
             let wait = timeout.saturating_sub(last_progress.elapsed());
             let event = self.receive(wait)?;
             match event {
                 Some(Event::Message(DeviceMsg::Ack { seq })) if seq != CONTROL_SEQ => {
-                    if self.acknowledge(&mut in_flight, seq) {
-                        last_progress = Instant::now();
-                        timeout = base_timeout;
-                        stale = None;
-                        clean += 1;
-                        if clean >= 2 * window {
-                            batch_len = (batch_len * 2).min(max_batch);
-                            clean = 0;
+                    let timed = in_flight
+                        .iter()
+                        .find(|b| b.seq == seq && b.once)
+                        .map(|b| b.sent.elapsed());
+                    let acked = self.acknowledge(&mut in_flight, seq);
+                    if acked > 0 {
+                        adapt.acked(acked);
+                        if let Some(rtt) = timed {
+                            self.measured(rtt);
                         }
+                        last_progress = Instant::now();
+                        self.progress = last_progress;
+                        backoff = 1;
+                        stale = None;
+                        (batch_len, window) = adapt.choose();
                     }
                 }
                 Some(Event::Message(DeviceMsg::Nak { seq, reason })) if seq != CONTROL_SEQ => {
                     match reason {
                         NakReason::OutOfOrder | NakReason::Decode | NakReason::Crc => {
                             // Everything before `seq` was applied.
-                            if seq > 0 && self.acknowledge(&mut in_flight, seq - 1) {
+                            let acked = match seq {
+                                0 => 0,
+                                _ => self.acknowledge(&mut in_flight, seq - 1),
+                            };
+                            adapt.acked(acked);
+                            if acked > 0 {
                                 last_progress = Instant::now();
-                                timeout = base_timeout;
+                                self.progress = last_progress;
+                                backoff = 1;
                                 stale = None;
                             }
                             let unsent = in_flight.front().is_none_or(|b| b.seq != seq);
@@ -853,19 +1060,78 @@ impl<'a> Link<'a> {
                             waited: self.last_heard.elapsed(),
                         });
                     }
+                    if self.progress.elapsed() >= self.options.deadline {
+                        self.adapt = Some(adapt);
+                        return Err(self.deadline(
+                            "acknowledgements of sample batches",
+                            self.progress.elapsed(),
+                        ));
+                    }
                     if last_progress.elapsed() >= timeout {
                         self.stats.timeouts += 1;
                         resend = true;
                         stale = Some((in_flight.front().map_or(0, |b| b.seq), in_flight.len()));
-                        timeout = (timeout * 2).min(4 * base_timeout);
+                        backoff = (backoff * 2).min(4);
                         last_progress = Instant::now();
                     }
                 }
             }
+            self.adapt = Some(adapt);
+            self.stats.byte_error_rate = adapt.byte_error_rate();
+            self.stats.batch_len = batch_len;
+            self.stats.window = window;
         }
         self.stats.stream_seconds = started.elapsed().as_secs_f64();
         self.observer.progress(&self.stats);
         Ok(())
+    }
+
+    /// Where the device is: the samples it has applied (accepted or rejected, from its
+    /// Health) and the sequence number it expects next (an empty batch numbered far ahead
+    /// is naked `OutOfOrder` with it). What `lssi replay --resume` continues from.
+    pub fn position(&mut self) -> Result<(u64, u32), LinkError> {
+        let port = self.port.clone();
+        let refused = |reason: NakReason| LinkError::Refused {
+            port: port.clone(),
+            command: "the query",
+            reason,
+        };
+        let applied = self.command(
+            &HostMsg::Query,
+            "the device's sample count (a Query)",
+            |reply| match reply {
+                DeviceMsg::Health {
+                    samples, rejected, ..
+                } => Some(Ok(samples + rejected)),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(refused(*reason))),
+                _ => None,
+            },
+        )?;
+        let probe = HostMsg::Samples(SampleBatch::new(CONTROL_SEQ - 1, Channels::X));
+        let next = self.command(
+            &probe,
+            "the device's next sequence number",
+            |reply| match *reply {
+                DeviceMsg::Nak {
+                    seq,
+                    reason: NakReason::OutOfOrder,
+                } => Some(Ok(seq)),
+                DeviceMsg::Nak {
+                    reason: NakReason::NotConfigured,
+                    ..
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "resuming (a sample batch)",
+                    reason: NakReason::NotConfigured,
+                })),
+                _ => None,
+            },
+        )?;
+        self.stats.samples_acked = applied;
+        Ok((applied, next))
     }
 
     /// Where the device is in the stream: asks for its Health (a `Query`, resent until
@@ -907,18 +1173,18 @@ impl<'a> Link<'a> {
         Ok(Some((seq, applied)))
     }
 
-    /// Drops the batches up to `seq`; whether any was dropped.
-    fn acknowledge(&mut self, in_flight: &mut VecDeque<InFlight>, seq: u32) -> bool {
-        let mut any = false;
+    /// Drops the batches up to `seq`; how many were dropped.
+    fn acknowledge(&mut self, in_flight: &mut VecDeque<InFlight>, seq: u32) -> usize {
+        let mut any = 0;
         while let Some(front) = in_flight.front() {
             if front.seq > seq {
                 break;
             }
             self.stats.samples_acked += front.samples as u64;
             in_flight.pop_front();
-            any = true;
+            any += 1;
         }
-        if any {
+        if any > 0 {
             if let Some(started) = self.started {
                 self.stats.stream_seconds = started.elapsed().as_secs_f64();
             }
@@ -930,19 +1196,66 @@ impl<'a> Link<'a> {
     /// Asks for the model: the device screens and answers `Model` (if it has one) and
     /// `Health`. Returns the snapshot (`None`: no model yet) and the health counters, and
     /// settles `samples_lost` and `crc_errors` from them.
+    ///
+    /// The query is resent until its `Health` comes back. A `Health` that reports screenings
+    /// without a `Model` before it means the Model frame (a few hundred bytes) was damaged on
+    /// the line: the model is then fetched in short parts ([`HostMsg::ModelPart`]), each
+    /// resent until it crosses, and checked as a whole against its CRC.
     pub fn query(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {
-        let mut tries = 0;
-        loop {
-            let (model, health) = self.query_once()?;
-            // A Health that reports screenings but came without a Model: the Model frame was
-            // lost on the line (a model exists once a screening has made one). Asking again
-            // does not screen again (no sample came since), so the answer is the same model.
-            tries += 1;
-            if model.is_some() || health.screenings == 0 || tries >= 8 {
-                return Ok((model, health));
-            }
-            self.stats.timeouts += 1;
+        let (model, health) = self.query_once()?;
+        if model.is_some() || health.screenings == 0 {
+            return Ok((model, health));
         }
+        let model = self.model_in_parts()?;
+        if let Some(snapshot) = &model {
+            self.observer.model(snapshot);
+        }
+        Ok((model, health))
+    }
+
+    /// The current model, part by part (`None`: the device has none).
+    fn model_in_parts(&mut self) -> Result<Option<ModelSnapshot>, LinkError> {
+        for _ in 0..4 {
+            let mut bytes: Vec<u8> = Vec::new();
+            let mut whole: Option<(u16, u32)> = None;
+            loop {
+                let offset = u16::try_from(bytes.len()).unwrap_or(u16::MAX);
+                let part = self.command(
+                    &HostMsg::ModelPart { offset },
+                    "a part of the model (ModelPart)",
+                    |reply| match reply {
+                        DeviceMsg::ModelPart(part) if part.offset == offset => {
+                            Some(Ok(Some(part.clone())))
+                        }
+                        DeviceMsg::Nak {
+                            seq: CONTROL_SEQ,
+                            reason: NakReason::NotConfigured,
+                        } => Some(Ok(None)),
+                        _ => None,
+                    },
+                )?;
+                self.stats.model_parts += 1;
+                let Some(part) = part else {
+                    return Ok(None);
+                };
+                match whole {
+                    // A part of another model (it changed): start again.
+                    Some(w) if w != (part.total, part.crc) => break,
+                    _ => whole = Some((part.total, part.crc)),
+                }
+                if part.bytes.is_empty() && bytes.len() < usize::from(part.total) {
+                    break;
+                }
+                bytes.extend_from_slice(&part.bytes);
+                if bytes.len() >= usize::from(part.total) {
+                    if let Some(snapshot) = snapshot_from_parts(&bytes, part.crc) {
+                        return Ok(Some(snapshot));
+                    }
+                    break;
+                }
+            }
+        }
+        Ok(None)
     }
 
     fn query_once(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {

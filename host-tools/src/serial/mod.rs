@@ -9,9 +9,11 @@
 //! - [`session`]: one `lssi replay`: device started, telemetry log opened, recording replayed.
 //! - [`monitor`]: `lssi monitor`: a standalone device's frames, live and logged.
 
+pub mod adapt;
 pub mod device;
 pub mod link;
 pub mod monitor;
 pub mod qemu;
+pub mod quantise;
 pub mod replay;
 pub mod session;

@@ -11,12 +11,13 @@
 
 use lssi_core::Config;
 use lssi_device::wire::{config_to_wire, fits, model_from_snapshot};
-use lssi_proto::{ModelSnapshot, NakReason, WireConfig, WireSample};
+use lssi_proto::{ModelSnapshot, NakReason, SampleEncoding, WireConfig, WireSample};
 use serde::Serialize;
 
 use crate::identify::{self, Report, TERM_CAPACITY};
 use crate::recording::Recording;
-use crate::serial::link::{Link, LinkError, LinkStats};
+use crate::serial::link::{F32Samples, Link, LinkError, LinkStats};
+use crate::serial::quantise::{Quantisation, Quantised};
 
 /// What `lssi replay --json` prints: `lssi identify --json`'s object plus `"link"`.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -26,6 +27,20 @@ pub struct ReplayReport {
     pub report: Report,
     /// The link's counters.
     pub link: LinkStats,
+    /// With the compact encoding: how the samples were quantised (the model is that of the
+    /// quantised recording, `lssi identify --quantise i16`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quantisation: Option<Quantisation>,
+}
+
+/// How a replay sends its samples and where it starts.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ReplayMode<'a> {
+    /// The compact encoding's quantised recording (`None`: f32 samples).
+    pub quantised: Option<&'a Quantised>,
+    /// Continue a replay the device has begun, from the last sample it applied, without
+    /// configuring it again.
+    pub resume: bool,
 }
 
 /// Why a replay failed.
@@ -87,8 +102,30 @@ pub fn replay_over(
     config: &Config,
     omega_estimated: bool,
 ) -> Result<ReplayReport, ReplayError> {
+    replay_over_with(
+        link,
+        recording,
+        config,
+        omega_estimated,
+        ReplayMode::default(),
+    )
+}
+
+/// [`replay_over`] in the compact encoding and/or resuming, as `mode` says. With the compact
+/// encoding, `recording` and `config` are those of the quantised recording
+/// ([`Quantised::recording`]).
+pub fn replay_over_with(
+    link: &mut Link<'_>,
+    recording: &Recording,
+    config: &Config,
+    omega_estimated: bool,
+    mode: ReplayMode<'_>,
+) -> Result<ReplayReport, ReplayError> {
     let file = recording.path.display().to_string();
-    let wire = wire_config(recording, config)?;
+    let mut wire = wire_config(recording, config)?;
+    if let Some(quantised) = mode.quantised {
+        wire.encoding = SampleEncoding::I16(quantised.encoding);
+    }
     let info = link.hello()?;
     fits(config, info.window_capacity, info.max_terms).map_err(|e| {
         ReplayError::Input(format!(
@@ -96,7 +133,12 @@ pub fn replay_over(
             link.port()
         ))
     })?;
-    link.configure(&wire).map_err(|e| match e {
+    let configured = if mode.resume {
+        Ok(())
+    } else {
+        link.configure(&wire)
+    };
+    configured.map_err(|e| match e {
         // `fits` passed and `identify::configure` validated the rest: with three channels,
         // their count is what the device cannot take.
         LinkError::Refused {
@@ -108,8 +150,23 @@ pub fn replay_over(
         )),
         e => e.into(),
     })?;
-    let samples = wire_samples(recording);
-    link.stream(&samples)?;
+    let (from, first_seq) = if mode.resume {
+        let (applied, next) = link.position()?;
+        (usize::try_from(applied).unwrap_or(usize::MAX), next)
+    } else {
+        (0, 0)
+    };
+    if from > recording.len() {
+        return Err(ReplayError::Input(format!(
+            "{file}: the device ({}) has applied {from} samples, more than the recording's {}, so it is not replaying this recording; replay without --resume.",
+            link.port(),
+            recording.len()
+        )));
+    }
+    match mode.quantised {
+        Some(quantised) => link.stream_from(quantised, from, first_seq)?,
+        None => link.stream_from(&F32Samples(&wire_samples(recording)), from, first_seq)?,
+    }
     let (snapshot, health) = link.query()?;
     let snapshot = snapshot.ok_or_else(|| {
         ReplayError::Input(format!(
@@ -127,6 +184,7 @@ pub fn replay_over(
     Ok(ReplayReport {
         report,
         link: *link.stats(),
+        quantisation: mode.quantised.map(|q| q.summary.clone()),
     })
 }
 

@@ -1,6 +1,6 @@
 //! One `lssi replay` session: the device started (a port as given, `firmware-sim` or QEMU on a
 //! pty), the telemetry log opened, the recording streamed over the [`Link`] with
-//! [`replay_over`], and the device process stopped, its last words noted in the log.
+//! [`replay_over_with`], and the device process stopped, its last words noted in the log.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -13,7 +13,8 @@ use crate::identify::{self, Options};
 use crate::recording::{ColumnNames, Recording};
 use crate::serial::device::{DeviceProcess, SimOptions};
 use crate::serial::link::{Link, LinkOptions, LinkStats, Observer};
-use crate::serial::replay::{ReplayReport, replay_over, wire_config};
+use crate::serial::quantise::{Quantised, quantise};
+use crate::serial::replay::{ReplayMode, ReplayReport, replay_over_with, wire_config};
 use crate::telemetry::defmt::{DefmtLines, Tables};
 use crate::telemetry::{RecordKind, TelemetryLog};
 
@@ -49,6 +50,12 @@ pub struct Setup {
     pub log: PathBuf,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// Send i16 samples (`--encoding i16`): the recording is quantised first, and the
+    /// quantised recording is what is configured, streamed and reported.
+    pub quantise: bool,
+    /// Continue a replay the device has begun (`--resume`): no Configure, the samples from
+    /// the device's count on.
+    pub resume: bool,
 }
 
 /// Shows progress on a terminal and prints the device's log lines.
@@ -108,6 +115,17 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
     .transpose()?;
 
     let recording = Recording::read(&setup.file, &setup.columns)?;
+    // The compact encoding's quantisation is part of the recording: configured, streamed
+    // and reported as the quantised recording (what `lssi identify --quantise i16` reads).
+    let quantised: Option<Quantised> = if setup.quantise {
+        Some(quantise(&recording).map_err(CliError::Input)?)
+    } else {
+        None
+    };
+    let recording = match &quantised {
+        Some(q) => q.recording.clone(),
+        None => recording,
+    };
     let (config, estimated) = identify::configure(&recording, &setup.options)?;
     let wire = wire_config(&recording, &config)?;
 
@@ -148,6 +166,8 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         "port": port_name,
         "baud": setup.sim.baud,
         "faults": {"flip_rate": setup.sim.flip_rate, "drop_rate": setup.sim.drop_rate, "burst": setup.sim.burst, "seed": setup.sim.seed},
+        "encoding": if setup.quantise { "i16" } else { "f32" },
+        "resume": setup.resume,
         "omega_estimated": estimated,
         "samples": recording.len(),
         "config": wire,
@@ -192,7 +212,11 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         if let Some(stdout) = qemu_stdout {
             link.attach_defmt(Box::new(stdout));
         }
-        let result = replay_over(&mut link, &recording, &config, estimated);
+        let mode = ReplayMode {
+            quantised: quantised.as_ref(),
+            resume: setup.resume,
+        };
+        let result = replay_over_with(&mut link, &recording, &config, estimated, mode);
         if let Err(error) = &result {
             let _ = link.note(&format!("replay stopped: {error}"));
         }

@@ -237,6 +237,13 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             "sample_rate_hz": sample_rate_hz,
         }),
         DeviceMsg::Log { bytes } => json!({ "kind": "log", "bytes": hex(bytes) }),
+        DeviceMsg::ModelPart(part) => json!({
+            "kind": "model_part",
+            "total": part.total,
+            "offset": part.offset,
+            "crc": part.crc,
+            "bytes": hex(&part.bytes),
+        }),
     }
 }
 
@@ -319,6 +326,12 @@ pub fn render_text(entries: &[Entry]) -> String {
                     "{at}health: {samples} samples ({rejected} rejected), {screenings} screenings, {frames_ok} frames ok, {crc_errors} CRC errors, {duplicates} duplicates, cost {cost_mean} mean / {cost_max} max {cost_unit:?}\n"
                 )),
                 DeviceMsg::Log { bytes } => out.push_str(&format!("{at}device: {}\n", hex(bytes))),
+                DeviceMsg::ModelPart(part) => out.push_str(&format!(
+                    "{at}model part: bytes {}..{} of {}\n",
+                    part.offset,
+                    usize::from(part.offset) + part.bytes.len(),
+                    part.total
+                )),
             },
             Event::Corrupt { error, .. } => {
                 *counts.entry("corrupt").or_default() += 1;

@@ -2,8 +2,9 @@
 #![allow(dead_code)]
 
 use lssi_proto::{
-    Channels, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, MAX_BATCH, MAX_LOG, MAX_SOLUTIONS,
-    MAX_TERMS, Message, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch,
+    Channels, CompactBatch, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, I16Encoding,
+    MAX_BATCH, MAX_COMPACT_BATCH, MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, MODEL_PART_LEN, Message,
+    ModelPart, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch, SampleEncoding,
     SnapshotCause, SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
 };
 use proptest::collection::vec;
@@ -124,8 +125,35 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
                 offsets,
                 max_abs,
                 test_rows,
+                encoding: SampleEncoding::F32,
             },
         )
+}
+
+pub fn i16_encoding() -> impl Strategy<Value = I16Encoding> {
+    (any::<f64>(), any::<f64>(), any::<[f32; 3]>()).prop_map(|(t0, dt, scale)| I16Encoding {
+        t0,
+        dt,
+        scale,
+    })
+}
+
+pub fn compact_batch() -> impl Strategy<Value = CompactBatch> {
+    (
+        any::<u32>(),
+        any::<u32>(),
+        0u8..4,
+        vec(any::<[i16; 3]>(), 0..=MAX_COMPACT_BATCH),
+    )
+        .prop_map(|(seq, start, bits, samples)| {
+            let channels = Channels::from_bits(bits).expect("two bits");
+            let width = channels.values_per_sample() - 1;
+            let mut batch = CompactBatch::new(seq, start, channels);
+            for sample in &samples {
+                batch.push(&sample[..width]).expect("64 samples fit");
+            }
+            batch
+        })
 }
 
 pub fn host_msg() -> impl Strategy<Value = HostMsg> {
@@ -137,6 +165,12 @@ pub fn host_msg() -> impl Strategy<Value = HostMsg> {
         batch().prop_map(HostMsg::Samples),
         Just(HostMsg::Query),
         Just(HostMsg::Reset),
+        (config(), i16_encoding()).prop_map(|(mut config, encoding)| {
+            config.encoding = SampleEncoding::I16(encoding);
+            HostMsg::Configure(config)
+        }),
+        compact_batch().prop_map(HostMsg::Compact),
+        any::<u16>().prop_map(|offset| HostMsg::ModelPart { offset }),
     ]
 }
 
@@ -311,6 +345,20 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
             bytes: bytes.into_iter().collect()
         }),
+        (
+            any::<u16>(),
+            any::<u16>(),
+            any::<u32>(),
+            vec(any::<u8>(), 0..=MODEL_PART_LEN)
+        )
+            .prop_map(
+                |(total, offset, crc, bytes)| DeviceMsg::ModelPart(ModelPart {
+                    total,
+                    offset,
+                    crc,
+                    bytes: bytes.into_iter().collect(),
+                })
+            ),
     ]
 }
 
@@ -352,6 +400,11 @@ pub fn worst_config() -> WireConfig {
         offsets: true,
         max_abs: 1e9,
         test_rows: u16::MAX,
+        encoding: SampleEncoding::I16(I16Encoding {
+            t0: 1e300,
+            dt: 1e-300,
+            scale: [f32::MAX; 3],
+        }),
     }
 }
 
@@ -386,6 +439,21 @@ pub fn worst_snapshot() -> ModelSnapshot {
 }
 
 /// The largest value of every variant of both enums.
+pub fn worst_compact_batch() -> CompactBatch {
+    let mut batch = CompactBatch::new(u32::MAX, u32::MAX, Channels::XVU);
+    while batch.push(&[i16::MIN, i16::MAX, -1]).is_ok() {}
+    batch
+}
+
+pub fn worst_model_part() -> ModelPart {
+    ModelPart {
+        total: u16::MAX,
+        offset: u16::MAX,
+        crc: u32::MAX,
+        bytes: core::iter::repeat_n(0xFF, MODEL_PART_LEN).collect(),
+    }
+}
+
 pub fn worst_host_msgs() -> Vec<HostMsg> {
     vec![
         HostMsg::Hello {
@@ -395,6 +463,8 @@ pub fn worst_host_msgs() -> Vec<HostMsg> {
         HostMsg::Samples(worst_batch()),
         HostMsg::Query,
         HostMsg::Reset,
+        HostMsg::Compact(worst_compact_batch()),
+        HostMsg::ModelPart { offset: u16::MAX },
     ]
 }
 
@@ -436,6 +506,7 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
         DeviceMsg::Log {
             bytes: core::iter::repeat_n(0xA5, MAX_LOG).collect(),
         },
+        DeviceMsg::ModelPart(worst_model_part()),
     ]
 }
 
