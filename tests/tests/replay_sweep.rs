@@ -12,10 +12,10 @@
 
 use std::path::{Path, PathBuf};
 
-use lssi_host::identify::identify_recording;
 use lssi_host::commands::replay::{Encoding, ReplayArgs, replay};
-use lssi_host::serial::device::find_firmware_sim;
+use lssi_host::identify::identify_recording;
 use lssi_host::recording::{ColumnNames, Recording};
+use lssi_host::serial::device::find_firmware_sim;
 use lssi_host::serial::quantise::quantise;
 
 fn bistable() -> PathBuf {

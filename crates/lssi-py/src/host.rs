@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use lssi_core::{Config, Identifier, Real, Sample};
 pub use lssi_host::identify::Options;
 pub use lssi_host::identify::Report;
+use lssi_host::identify::simulate::{self, SimModel};
 use lssi_host::identify::{self, TERM_CAPACITY};
 use lssi_host::recording::{ColumnNames, Recording};
-use lssi_host::identify::simulate::{self, SimModel};
 
 /// The ring-buffer capacity `lssi identify` runs with.
 pub use lssi_host::identify::WINDOW_CAPACITY;
@@ -69,17 +69,24 @@ pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), Strin
     identify::configure(&r, options).map_err(|e| e.0)
 }
 
-/// `lssi identify` on columns: its report (the `--json` object) and the configuration.
-pub fn fit(c: Columns, options: &Options) -> Result<(Report, Config), String> {
+/// `lssi identify` on columns: its report (the `--json` object), the configuration and the
+/// warnings `--json` ends with. A model that fails the quality gate is an error, with the
+/// sentence `lssi identify` prints ("no deterministic dynamics found in …").
+pub fn fit(c: Columns, options: &Options) -> Result<(Report, Config, Vec<String>), String> {
     let r = recording(c);
-    let (config, estimated) = identify::configure(&r, options).map_err(|e| e.0)?;
-    let report = if options.f32 {
-        identify::run::<f32>(&r, config, estimated)
-    } else {
-        identify::run::<f64>(&r, config, estimated)
+    let (config, _) = identify::configure(&r, options).map_err(|e| e.0)?;
+    let (report, quality) = identify::quality::identify_checked(&r, options).map_err(|e| e.0)?;
+    if !quality.passed() {
+        return Err(identify::quality::refusal(&r, &quality));
     }
-    .map_err(|e| e.0)?;
-    Ok((report, config))
+    let warnings = warnings(&report);
+    Ok((report, config, warnings))
+}
+
+/// The warnings `lssi identify --json` ends with for a report that passed the gate: the
+/// left-out samples.
+pub fn warnings(report: &Report) -> Vec<String> {
+    identify::batch::warnings(report)
 }
 
 /// The identifier `lssi identify` streams through, in precision `T`.
@@ -122,9 +129,14 @@ pub fn sample<T: Real>(t: f64, x: f64, v: Option<f64>, u: Option<f64>) -> Sample
     }
 }
 
-/// The JSON `lssi identify --json` prints for a report.
-pub fn json(report: &Report) -> String {
-    serde_json::to_string(report).unwrap_or_default()
+/// The JSON `lssi identify --json` prints for a report and its warnings.
+pub fn json(report: &Report, warnings: &[String]) -> String {
+    let mut text = serde_json::to_string(report).unwrap_or_default();
+    text.pop();
+    text.push_str(",\"warnings\":");
+    text.push_str(&serde_json::Value::from(warnings.to_vec()).to_string());
+    text.push('}');
+    text
 }
 
 /// The text `lssi identify` prints for a report.

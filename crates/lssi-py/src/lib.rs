@@ -59,13 +59,15 @@ struct Fit {
     report: Report,
     config: Config,
     omega_estimated: bool,
+    /// What `lssi identify --json` ends with.
+    warnings: Vec<String>,
 }
 
 #[pymethods]
 impl Fit {
     /// The `lssi identify --json` object, as a string.
     fn json(&self) -> String {
-        host::json(&self.report)
+        host::json(&self.report, &self.warnings)
     }
 
     /// The `lssi identify` text report.
@@ -140,13 +142,14 @@ fn fit(
 }
 
 fn run(py: Python<'_>, columns: Columns, options: &Options) -> PyResult<Fit> {
-    let (report, config) = py
+    let (report, config, warnings) = py
         .detach(|| host::fit(columns, options))
         .map_err(value_error)?;
     Ok(Fit {
         omega_estimated: report.omega_estimated,
         report,
         config,
+        warnings,
     })
 }
 
@@ -312,6 +315,7 @@ impl RawStream {
             })
             .map_err(value_error)?;
         Ok(Fit {
+            warnings: host::warnings(&report),
             report,
             config,
             omega_estimated: estimated,

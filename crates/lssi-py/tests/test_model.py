@@ -110,3 +110,12 @@ def test_bad_options_and_files_are_value_errors(tmp_path):
         lssi.Model().fit(np.zeros(200), dt=0.01)
     with pytest.raises(ValueError, match="array: no model: 200 samples were accepted"):
         lssi.Model(omega=1.0).fit(np.zeros(200), dt=0.01)
+
+
+def test_white_noise_gets_no_model_as_the_command_refuses_it():
+    """The quality gate of `lssi identify` (exit 3) is a ValueError here, same sentence."""
+    rng = np.random.default_rng(7)
+    t = np.arange(20000) * 5e-4
+    x = 1e-3 * rng.standard_normal(t.size)
+    with pytest.raises(ValueError, match="no deterministic dynamics found"):
+        lssi.Model().fit(x, t=t)

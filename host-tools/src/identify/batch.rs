@@ -78,7 +78,7 @@ fn equation(report: &Report) -> String {
 }
 
 /// The rejected samples as `lssi identify` warns of them: the first five, then a count.
-pub(crate) fn warnings(report: &Report) -> Vec<String> {
+pub fn warnings(report: &Report) -> Vec<String> {
     const NAMED: usize = 5;
     let mut out: Vec<String> = report.rejections.iter().take(NAMED).cloned().collect();
     if report.rejections.len() > NAMED {
