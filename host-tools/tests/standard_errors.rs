@@ -10,10 +10,10 @@
 //! report it, is left out to keep the test short).
 
 use lssi_core::PolyFamily;
-use lssi_host::generators::eveh::{EvehOptions, Wells, generate_eveh};
+use lssi_host::identify::refine::{self, Data, Settings};
+use lssi_host::identify::simulate::SimModel;
 use lssi_host::identify::{self, Options};
-use lssi_host::refine::{self, Data, Settings};
-use lssi_host::simulate::SimModel;
+use lssi_host::synth::eveh::{EvehOptions, Wells, generate_eveh};
 
 /// |refined − true| ÷ standard error of every true term (infinity for a term the streaming
 /// selection missed: it counts as outside).
