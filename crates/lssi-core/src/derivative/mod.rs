@@ -435,63 +435,6 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
         }
         acc
     }
-
-    /// The value and the first derivative (orders 0 and 1) of one window of `a ++ b`:
-    /// `(apply(0, a, b), apply(1, a, b))` bit for bit (the same products in the same lanes,
-    /// summed in the same order), in one pass over the window: each pair of samples is
-    /// loaded once for both filters.
-    pub fn apply_pair(&self, a: &[T], b: &[T]) -> (T, T) {
-        let (h0, h1) = (self.half_taps(0), self.half_taps(1));
-        let n = self.len;
-        let total = a.len() + b.len();
-        if total < n || h0.is_empty() || h1.is_empty() {
-            return (self.apply(0, a, b), self.apply(1, a, b));
-        }
-        let skip = total - n;
-        let (s0, s1) = if skip >= a.len() {
-            (&b[skip - a.len()..skip - a.len()], &b[skip - a.len()..])
-        } else {
-            (&a[skip..], b)
-        };
-        let m = s0.len();
-        let pairs = n / 2;
-        let e1 = m.min(n - m).min(pairs);
-        let e2 = m.max(n - m).min(pairs);
-        let mut lanes = [[T::ZERO; 4]; 2];
-        fold_sum_pair(
-            (&h0[..e1], &h1[..e1]),
-            &s0[..e1],
-            &s1[n - m - e1..n - m],
-            0,
-            &mut lanes,
-        );
-        if m <= n - m {
-            fold_sum_pair(
-                (&h0[e1..e2], &h1[e1..e2]),
-                &s1[e1 - m..e2 - m],
-                &s1[n - m - e2..n - m - e1],
-                e1,
-                &mut lanes,
-            );
-        } else {
-            fold_sum_pair(
-                (&h0[e1..e2], &h1[e1..e2]),
-                &s0[e1..e2],
-                &s0[n - e2..n - e1],
-                e1,
-                &mut lanes,
-            );
-        }
-        let [l0, l1] = lanes;
-        let mut value = (l0[0] + l0[1]) + (l0[2] + l0[3]);
-        let slope = (l1[0] + l1[1]) + (l1[2] + l1[3]);
-        if n % 2 == 1 {
-            let c = n / 2;
-            let centre = if c < m { s0[c] } else { s1[c - m] };
-            value += h0[c] * centre;
-        }
-        (value, slope)
-    }
 }
 
 /// Adds h[i]·(l[i] ± r[len−1−i]) (`r` walked backwards: the mirror half of the window) to
@@ -532,60 +475,6 @@ fn fold_sum<T: Real>(h: &[T], l: &[T], r: &[T], sign: T, k0: usize, acc: &mut [T
     for (i, (&h, &l)) in ht.iter().zip(lt).enumerate() {
         if let Some(&r) = rt.get(rt.len() - 1 - i) {
             acc[i] += h * (l + sign * r);
-        }
-    }
-}
-
-/// [`fold_sum`] for two filters at once: the even taps `h.0` (sign +1) and the odd taps
-/// `h.1` (sign −1) over the same pairs, each into its own lanes exactly as two calls of
-/// `fold_sum` would (the same products, lanes and order), loading each pair once.
-#[inline(never)]
-fn fold_sum_pair<T: Real>(
-    (h0, h1): (&[T], &[T]),
-    l: &[T],
-    r: &[T],
-    k0: usize,
-    acc: &mut [[T; 4]; 2],
-) {
-    let len = h0.len().min(h1.len()).min(l.len()).min(r.len());
-    let (h0, h1, l, r) = (&h0[..len], &h1[..len], &l[..len], &r[r.len() - len..]);
-    let (plus, minus) = (T::ONE, -T::ONE);
-    let head = ((4 - k0 % 4) % 4).min(len);
-    for i in 0..head {
-        let (li, ri) = (l[i], r[len - 1 - i]);
-        acc[0][(k0 + i) % 4] += h0[i] * (li + plus * ri);
-        acc[1][(k0 + i) % 4] += h1[i] * (li + minus * ri);
-    }
-    let (h0, h1, l, r) = (&h0[head..], &h1[head..], &l[head..], &r[..len - head]);
-    let (h0c, h1c) = (h0.chunks_exact(4), h1.chunks_exact(4));
-    let lc = l.chunks_exact(4);
-    let rc = r.rchunks_exact(4);
-    let (h0t, h1t, lt, rt) = (
-        h0c.remainder(),
-        h1c.remainder(),
-        lc.remainder(),
-        rc.remainder(),
-    );
-    for (((h0, h1), l), r) in h0c.zip(h1c).zip(lc).zip(rc) {
-        let (&[a0, a1, a2, a3], &[b0, b1, b2, b3], &[l0, l1, l2, l3], &[r0, r1, r2, r3]) =
-            (h0, h1, l, r)
-        else {
-            continue;
-        };
-        let [e, o] = acc;
-        e[0] += a0 * (l0 + plus * r3);
-        o[0] += b0 * (l0 + minus * r3);
-        e[1] += a1 * (l1 + plus * r2);
-        o[1] += b1 * (l1 + minus * r2);
-        e[2] += a2 * (l2 + plus * r1);
-        o[2] += b2 * (l2 + minus * r1);
-        e[3] += a3 * (l3 + plus * r0);
-        o[3] += b3 * (l3 + minus * r0);
-    }
-    for (i, ((&a, &b), &l)) in h0t.iter().zip(h1t).zip(lt).enumerate() {
-        if let Some(&r) = rt.get(rt.len() - 1 - i) {
-            acc[0][i] += a * (l + plus * r);
-            acc[1][i] += b * (l + minus * r);
         }
     }
 }

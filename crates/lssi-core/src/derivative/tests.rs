@@ -117,33 +117,3 @@ fn bad_designs_are_errors() {
         Err(TapsError::SamplePeriod)
     ));
 }
-
-/// `apply_pair` is `(apply(0), apply(1))` bit for bit, at every split of the ring and every
-/// window length (odd and even), in f32 and f64.
-#[test]
-fn apply_pair_is_two_applies_bit_for_bit() {
-    fn check<T: crate::real::Real + core::fmt::Debug>() {
-        for len in [7usize, 8, 9, 33, 34, 63, 64] {
-            let Ok(taps) = Taps::<T, 64>::design(len, 5.min(len - 3), 0.01) else {
-                continue;
-            };
-            let folded = FoldedTaps::fold(&taps);
-            let x: std::vec::Vec<T> = (0..70)
-                .map(|k| T::from_f64((0.37 * k as f64).sin() + 0.01 * (k * k % 7) as f64))
-                .collect();
-            for end in [len - 1, len, len + 5, x.len()] {
-                for split in 0..=end {
-                    let (a, b) = x[..end].split_at(split);
-                    let pair = folded.apply_pair(a, b);
-                    assert_eq!(
-                        pair,
-                        (folded.apply(0, a, b), folded.apply(1, a, b)),
-                        "{len} {end} {split}"
-                    );
-                }
-            }
-        }
-    }
-    check::<f32>();
-    check::<f64>();
-}

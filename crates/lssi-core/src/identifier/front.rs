@@ -85,14 +85,12 @@ impl<T: Real, const W: usize, const C: usize> Front<T, W, C> {
     pub(super) fn estimate(&self, channels: Channels) -> Estimate<T> {
         let taps = &self.taps;
         let (xa, xb) = self.rings[0].as_slices();
-        // Orders 0 and 1 of one ring in one pass (`apply_pair`, bit for bit two `apply`s).
-        let (x, v, y) = if channels.velocity {
+        let x = taps.apply(0, xa, xb);
+        let (v, y) = if channels.velocity {
             let (va, vb) = self.rings[V_RING].as_slices();
-            let (v, y) = taps.apply_pair(va, vb);
-            (taps.apply(0, xa, xb), v, y)
+            (taps.apply(0, va, vb), taps.apply(1, va, vb))
         } else {
-            let (x, v) = taps.apply_pair(xa, xb);
-            (x, v, taps.apply(2, xa, xb))
+            (taps.apply(1, xa, xb), taps.apply(2, xa, xb))
         };
         let u = if channels.input {
             let (ua, ub) = self.rings[self.u_ring].as_slices();
