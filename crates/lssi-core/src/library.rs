@@ -346,15 +346,20 @@ impl<const P: usize> Library<P> {
     /// advances the phase by rotation instead of calling sin and cos for every row.
     pub fn evaluate_sin_cos<T: Real>(&self, x: T, v: T, s1: T, c1: T, u: T, row: &mut [T]) {
         let order = usize::from(self.config.poly_order);
-        let mut xp = [T::ONE; MAX_POLY_ORDER as usize + 1];
-        let mut vp = [T::ONE; MAX_POLY_ORDER as usize + 1];
+        // Only the powers up to the order are read (and the harmonics up to theirs): zeroed
+        // (one memset) rather than filled with ones element by element, a loop each in the
+        // size-optimised firmware (about 70 instructions a row on the M4F).
+        let mut xp = [T::ZERO; MAX_POLY_ORDER as usize + 1];
+        let mut vp = [T::ZERO; MAX_POLY_ORDER as usize + 1];
+        (xp[0], vp[0]) = (T::ONE, T::ONE);
         for i in 1..=order {
             xp[i] = xp[i - 1] * x;
             vp[i] = vp[i - 1] * v;
         }
         let harmonics = usize::from(self.config.harmonics);
         let mut sines = [T::ZERO; MAX_HARMONICS as usize + 1];
-        let mut cosines = [T::ONE; MAX_HARMONICS as usize + 1];
+        let mut cosines = [T::ZERO; MAX_HARMONICS as usize + 1];
+        cosines[0] = T::ONE;
         if harmonics > 0 {
             sines[1] = s1;
             cosines[1] = c1;

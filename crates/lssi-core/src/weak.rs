@@ -78,6 +78,14 @@ impl<T: Real, const P: usize> TestRows<T, P> {
         self.targets = [T::ZERO; 4];
     }
 
+    /// φ at row `i` of a sum, over Σφ.
+    #[inline(always)]
+    fn weight(&self, i: u32) -> T {
+        let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
+        let b = T::ONE - tau * tau;
+        (b * b) * (b * b) * self.inverse_norm
+    }
+
     /// Rows between two completed sums.
     pub fn quarter(&self) -> u32 {
         self.quarter
@@ -86,19 +94,49 @@ impl<T: Real, const P: usize> TestRows<T, P> {
     /// Adds a row (its first `n` columns and its target) to the sums it falls in; a sum
     /// that completes with it is handed to `emit` and started again.
     pub fn push(&mut self, theta: &[T; P], y: T, n: usize, mut emit: impl FnMut(&[T; P], T)) {
+        // Once all four sums run (after the first 3L/4 rows), the four column updates go in
+        // one pass over the row: each θ_c loaded once for four sums. Every sum gets the same
+        // products in the same order as one at a time, so the sums are the same bit for bit.
+        let all = self.phase >= 3 * self.quarter;
+        let mut positions = [0u32; 4];
+        let mut weights = [T::ZERO; 4];
+        if all {
+            for k in 0..4u32 {
+                let i = (self.phase - k * self.quarter) % self.width;
+                positions[k as usize] = i;
+                weights[k as usize] = self.weight(i);
+            }
+            let [w0, w1, w2, w3] = weights;
+            let [c0, c1, c2, c3] = &mut self.columns;
+            let rows = c0[..n]
+                .iter_mut()
+                .zip(&mut c1[..n])
+                .zip(&mut c2[..n])
+                .zip(&mut c3[..n]);
+            for ((((s0, s1), s2), s3), t) in rows.zip(&theta[..n]) {
+                let t = *t;
+                *s0 += w0 * t;
+                *s1 += w1 * t;
+                *s2 += w2 * t;
+                *s3 += w3 * t;
+            }
+        }
         for k in 0..4u32 {
             let start = k * self.quarter;
             if self.phase < start {
                 continue;
             }
-            let i = (self.phase - start) % self.width;
-            let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
-            let b = T::ONE - tau * tau;
-            let w = (b * b) * (b * b) * self.inverse_norm;
             let j = k as usize;
-            for (s, t) in self.columns[j][..n].iter_mut().zip(theta[..n].iter()) {
-                *s += w * *t;
-            }
+            let (i, w) = if all {
+                (positions[j], weights[j])
+            } else {
+                let i = (self.phase - start) % self.width;
+                let w = self.weight(i);
+                for (s, t) in self.columns[j][..n].iter_mut().zip(theta[..n].iter()) {
+                    *s += w * *t;
+                }
+                (i, w)
+            };
             self.targets[j] += w * y;
             if i + 1 == self.width {
                 emit(&self.columns[j], self.targets[j]);

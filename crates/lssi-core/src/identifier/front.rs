@@ -106,12 +106,29 @@ impl<T: Real, const W: usize, const C: usize> Front<T, W, C> {
     /// (its minimum is degree + 3 ≥ 5).
     #[inline]
     pub(super) fn fourth_differences(&self, velocity: bool) -> (T, T) {
+        // The five newest samples, newest first (0 where fewer were written), read from the
+        // ring's two slices directly: the buffer's reversed chained iterator and the
+        // coefficients' run-time f64 → T conversions cost about 100 instructions a row on
+        // the M4F. The same products summed in the same order as before.
         let d4 = |buffer: &HistoryBuf<T, W>| {
-            let mut recent = buffer.oldest_ordered().rev().take(5);
-            let mut d = T::ZERO;
-            for c in [1.0, -4.0, 6.0, -4.0, 1.0] {
-                d += T::from_f64(c) * recent.next().copied().unwrap_or(T::ZERO);
+            let (older, newer) = buffer.as_slices();
+            let mut recent = [T::ZERO; 5];
+            for (k, r) in recent.iter_mut().enumerate() {
+                *r = if k < newer.len() {
+                    newer[newer.len() - 1 - k]
+                } else if k - newer.len() < older.len() {
+                    older[older.len() - 1 - (k - newer.len())]
+                } else {
+                    T::ZERO
+                };
             }
+            let (one, four, six) = (T::ONE, T::from_f64(4.0), T::from_f64(6.0));
+            let mut d = T::ZERO;
+            d += one * recent[0];
+            d += -four * recent[1];
+            d += six * recent[2];
+            d += -four * recent[3];
+            d += one * recent[4];
             d * d
         };
         let dv = if velocity {

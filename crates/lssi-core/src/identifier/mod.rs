@@ -298,11 +298,14 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         sample: Sample<T>,
         screening: impl FnOnce(&mut Self) -> bool,
     ) -> Result<bool, Rejection> {
-        if let Err(r) = self.intake.check(&sample, &self.config) {
-            self.counters.reject(r);
-            return Err(r);
-        }
-        if self.intake.accept(sample.t) {
+        let since = match self.intake.check(&sample, &self.config) {
+            Ok(since) => since,
+            Err(r) => {
+                self.counters.reject(r);
+                return Err(r);
+            }
+        };
+        if self.intake.accept(sample.t, since) {
             self.restart();
             self.counters.gaps += 1;
         }

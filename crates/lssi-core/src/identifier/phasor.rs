@@ -1,6 +1,7 @@
 //! The excitation's phasor (sin Ωt, cos Ωt) at a row's time, turned by a fixed rotation from
 //! one row to the next instead of computed anew.
 
+use super::intake::below;
 use crate::real::Real;
 
 /// Rows the phasor is rotated across before it is recomputed from t.
@@ -69,9 +70,10 @@ impl<T: Real> Phasor<T> {
     #[inline]
     pub(super) fn turn_to(&mut self, t: f64, omega: f64) {
         let (lo, hi) = self.step;
+        // lo ≤ d ≤ hi, compared by the bits (`below`: no soft-float compare calls).
         let consecutive = self.t.is_some_and(|t0| {
             let d = t - t0;
-            lo <= d && d <= hi
+            !below(d, lo) && !below(hi, d)
         });
         if consecutive && self.age < PHASOR_RESYNC {
             let (s, c) = self.value;
