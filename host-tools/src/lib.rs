@@ -39,5 +39,6 @@ pub mod output;
 pub mod plot;
 pub mod recording;
 pub mod serial;
+pub mod stream;
 pub mod synth;
 pub mod telemetry;

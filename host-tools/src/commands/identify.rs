@@ -155,6 +155,10 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);
     }
+    // Large files: read in chunks, configured from an excerpt (see crate::stream).
+    if !args.track && !args.refine && crate::stream::is_large(&args.file) {
+        return crate::stream::identify_command(&args.file, &args.columns, &options, args.json);
+    }
     let recording = Recording::read(&args.file, &args.columns)?;
     if args.track {
         return run_track(args, &recording, &options);
