@@ -168,6 +168,14 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);
     }
+    // Large files: read in chunks, configured from an excerpt (see identify::stream).
+    if !args.track
+        && !args.refine
+        && args.quantise.is_none()
+        && identify::stream::is_large(&args.file)
+    {
+        return identify::stream::identify_command(&args.file, &args.columns, &options, args.json);
+    }
     let mut recording = Recording::read(&args.file, &args.columns)?;
     if args.quantise == Some(Quantise::I16) {
         let quantised = crate::serial::quantise::quantise(&recording).map_err(CliError::Input)?;

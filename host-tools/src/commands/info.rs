@@ -21,6 +21,14 @@ pub struct InfoArgs {
 
 /// Runs `lssi info`.
 pub fn run(args: &InfoArgs) -> Result<(), CliError> {
+    // Large files: one pass, nothing held (see crate::identify::stream).
+    if crate::identify::stream::is_large(&args.file) {
+        crate::out!(
+            "{}",
+            crate::identify::stream::describe_file(&args.file, &args.columns)?
+        );
+        return Ok(());
+    }
     let recording = Recording::read(&args.file, &args.columns)?;
     crate::out!("{}", recording.describe());
     Ok(())

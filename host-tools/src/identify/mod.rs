@@ -15,6 +15,7 @@ pub mod blemish;
 pub mod quality;
 pub mod refine;
 pub mod simulate;
+pub mod stream;
 pub mod terms;
 pub mod track;
 
