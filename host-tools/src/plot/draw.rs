@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use lssi_core::Term;
+use lssi_core::{RestoringForce, Term};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -864,59 +864,11 @@ impl Figure for PhaseFigure<'_> {
 }
 
 /// Real roots of the model's unforced restoring force p(x) = Σ c₍ₐ,₀₎ (x − offset)ᵃ within
-/// `[lo, hi]`, with whether each is stable (p′ < 0).
+/// `[lo, hi]`, with whether each is stable (p′ < 0): [`RestoringForce::equilibria`].
 fn equilibria(report: &Report, lo: f64, hi: f64) -> Vec<(f64, bool)> {
-    let mut poly = [0.0f64; 10];
-    for (term, c) in &report.model {
-        match *term {
-            Term::Constant => poly[0] = *c,
-            Term::Monomial { px, pv: 0 } if usize::from(px) < poly.len() => {
-                poly[usize::from(px)] = *c
-            }
-            _ => {}
-        }
-    }
-    if poly[1..].iter().all(|c| *c == 0.0) {
-        return Vec::new();
-    }
-    let offset = report.offsets[0];
-    let p = |x: f64| poly.iter().rev().fold(0.0, |acc, &c| acc * x + c);
-    let dp = |x: f64| {
-        poly.iter()
-            .enumerate()
-            .skip(1)
-            .rev()
-            .fold(0.0, |acc, (a, &c)| acc * x + a as f64 * c)
-    };
-    let (lo, hi) = (lo - offset, hi - offset);
-    let steps = 2000;
+    let force = RestoringForce::from_terms(report.model.iter().copied(), report.offsets[0]);
     let mut out = Vec::new();
-    let mut a = lo;
-    let mut pa = p(a);
-    for i in 1..=steps {
-        let b = lo + (hi - lo) * i as f64 / steps as f64;
-        let pb = p(b);
-        if pa == 0.0 || pa * pb < 0.0 {
-            let (mut l, mut r, mut pl) = (a, b, pa);
-            for _ in 0..80 {
-                let m = 0.5 * (l + r);
-                let pm = p(m);
-                if pl * pm <= 0.0 {
-                    r = m;
-                } else {
-                    l = m;
-                    pl = pm;
-                }
-            }
-            let mut root = 0.5 * (l + r);
-            if root.abs() < 1e-9 * (hi - lo) {
-                root = 0.0;
-            }
-            out.push((root + offset, dp(root) < 0.0));
-        }
-        a = b;
-        pa = pb;
-    }
+    force.equilibria(lo, hi, |e| out.push((e.x, e.stable)));
     out
 }
 

@@ -63,6 +63,7 @@
 //! assert!((d + 336.6088).abs() < 1e-3);
 //! ```
 
+use lssi_core::{RestoringForce, Term};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -192,20 +193,30 @@ pub struct Coefficients {
 }
 
 impl Coefficients {
+    /// The restoring force of eq. (19), −Dx − Hx³ about x = 0.
+    pub fn restoring_force(&self) -> RestoringForce {
+        RestoringForce::from_terms(
+            [
+                (Term::Monomial { px: 1, pv: 0 }, -self.d),
+                (Term::Monomial { px: 3, pv: 0 }, -self.h),
+            ],
+            0.0,
+        )
+    }
+
     /// Linear resonance √D/2π in Hz (monostable), or `None`.
     pub fn resonance_hz(&self) -> Option<f64> {
-        (self.d > 0.0).then(|| self.d.sqrt() / (2.0 * std::f64::consts::PI))
+        self.restoring_force().resonance_hz()
     }
 
     /// Well positions ±√(−D/H) in metres (bistable), or `None`.
     pub fn wells(&self) -> Option<f64> {
-        (self.d < 0.0 && self.h > 0.0).then(|| (-self.d / self.h).sqrt())
+        self.restoring_force().wells()
     }
 
     /// Small-oscillation frequency in a well √(−2D)/2π in Hz (bistable), or `None`.
     pub fn well_resonance_hz(&self) -> Option<f64> {
-        self.wells()
-            .map(|_| (-2.0 * self.d).sqrt() / (2.0 * std::f64::consts::PI))
+        self.restoring_force().well_resonance_hz()
     }
 }
 
