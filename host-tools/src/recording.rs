@@ -418,11 +418,62 @@ pub fn read_csv(
 }
 
 /// Where each wanted quantity sits in a row.
-struct Positions {
-    t: usize,
-    x: usize,
-    v: Option<usize>,
-    u: Option<usize>,
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Positions {
+    pub(crate) t: usize,
+    pub(crate) x: usize,
+    pub(crate) v: Option<usize>,
+    pub(crate) u: Option<usize>,
+}
+
+/// Which columns of `header` (on line `header_line`) hold which quantity: the required ones
+/// present once, an optional one named by the user required too, a default name taken when
+/// present. Shared by [`parse_csv`] and the chunked reader (`identify::stream`).
+pub(crate) fn resolve_columns(
+    path: &Path,
+    header: &[String],
+    header_line: u64,
+    columns: &ColumnNames,
+) -> Result<Positions, RecordingError> {
+    let find = |name: &str, required: bool| -> Result<Option<usize>, RecordingError> {
+        let mut hits = header
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| h.as_str() == name);
+        match (hits.next(), hits.next()) {
+            (Some(_), Some(_)) => Err(RecordingError::DuplicateColumn {
+                path: path.to_owned(),
+                line: header_line,
+                column: name.to_owned(),
+            }),
+            (Some((index, _)), None) => Ok(Some(index)),
+            (None, _) if required => Err(RecordingError::MissingColumn {
+                path: path.to_owned(),
+                line: header_line,
+                column: name.to_owned(),
+                found: header.to_vec(),
+            }),
+            (None, _) => Ok(None),
+        }
+    };
+    let required = |name: &str| -> Result<usize, RecordingError> {
+        find(name, true)?.ok_or_else(|| RecordingError::MissingColumn {
+            path: path.to_owned(),
+            line: header_line,
+            column: name.to_owned(),
+            found: header.to_vec(),
+        })
+    };
+    let optional = |name: &Option<String>, default: &str| match name {
+        Some(name) => required(name).map(Some),
+        None => find(default, false),
+    };
+    Ok(Positions {
+        t: required(&columns.t)?,
+        x: required(&columns.x)?,
+        v: optional(&columns.v, "v")?,
+        u: optional(&columns.u, "u")?,
+    })
 }
 
 /// The 1-based line of the record that csv reports at byte offset `start`.
@@ -497,45 +548,7 @@ pub fn parse_csv(
     }
     let header_line = line_at(&bytes, 0);
 
-    let find = |name: &str, required: bool| -> Result<Option<usize>, RecordingError> {
-        let mut hits = header
-            .iter()
-            .enumerate()
-            .filter(|(_, h)| h.as_str() == name);
-        match (hits.next(), hits.next()) {
-            (Some(_), Some(_)) => Err(RecordingError::DuplicateColumn {
-                path: path.clone(),
-                line: header_line,
-                column: name.to_owned(),
-            }),
-            (Some((index, _)), None) => Ok(Some(index)),
-            (None, _) if required => Err(RecordingError::MissingColumn {
-                path: path.clone(),
-                line: header_line,
-                column: name.to_owned(),
-                found: header.clone(),
-            }),
-            (None, _) => Ok(None),
-        }
-    };
-    let required = |name: &str| -> Result<usize, RecordingError> {
-        find(name, true)?.ok_or_else(|| RecordingError::MissingColumn {
-            path: path.clone(),
-            line: header_line,
-            column: name.to_owned(),
-            found: header.clone(),
-        })
-    };
-    let optional = |name: &Option<String>, default: &str| match name {
-        Some(name) => required(name).map(Some),
-        None => find(default, false),
-    };
-    let positions = Positions {
-        t: required(&columns.t)?,
-        x: required(&columns.x)?,
-        v: optional(&columns.v, "v")?,
-        u: optional(&columns.u, "u")?,
-    };
+    let positions = resolve_columns(&path, &header, header_line, columns)?;
 
     let mut t = Vec::new();
     let mut x = Vec::new();

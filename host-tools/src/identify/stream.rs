@@ -35,7 +35,9 @@ use lssi_core::{Config, Identifier, Library, LibraryConfig, Real};
 use crate::identify::{
     self, IdentifyError, Options, Report, TERM_CAPACITY, WINDOW_CAPACITY, configure,
 };
-use crate::recording::{ColumnNames, MAX_LINE, Recording, RecordingError, Sample};
+use crate::recording::{
+    ColumnNames, MAX_LINE, Positions, Recording, RecordingError, Sample, resolve_columns,
+};
 
 /// Probes spread evenly over a large file for the last refinement of Ω (one fewer: the
 /// end of the file is the doubling chain's last probe).
@@ -91,15 +93,6 @@ impl<R: Read> Read for LineLimit<R> {
         }
         Ok(n)
     }
-}
-
-/// Where each wanted quantity sits in a row.
-#[derive(Clone, Copy, Debug)]
-struct Positions {
-    t: usize,
-    x: usize,
-    v: Option<usize>,
-    u: Option<usize>,
 }
 
 /// A CSV recording read one sample at a time; the same format, checks and error sentences as
@@ -190,7 +183,7 @@ impl CsvStream {
             return Err(RecordingError::Empty { path });
         }
         let header_line = line_at_file(&path, 0);
-        let positions = resolve(&path, &header, header_line, columns)?;
+        let positions = resolve_columns(&path, &header, header_line, columns)?;
         let columns = ColumnNames {
             t: header[positions.t].clone(),
             x: header[positions.x].clone(),
@@ -320,54 +313,6 @@ fn number(
         line: line_at_file(path, start),
         column: header.get(index).cloned().unwrap_or_default(),
         text: text.to_owned(),
-    })
-}
-
-/// Which columns hold which quantity: the checks of [`crate::recording::parse_csv`].
-fn resolve(
-    path: &Path,
-    header: &[String],
-    header_line: u64,
-    columns: &ColumnNames,
-) -> Result<Positions, RecordingError> {
-    let find = |name: &str, required: bool| -> Result<Option<usize>, RecordingError> {
-        let mut hits = header
-            .iter()
-            .enumerate()
-            .filter(|(_, h)| h.as_str() == name);
-        match (hits.next(), hits.next()) {
-            (Some(_), Some(_)) => Err(RecordingError::DuplicateColumn {
-                path: path.to_owned(),
-                line: header_line,
-                column: name.to_owned(),
-            }),
-            (Some((index, _)), None) => Ok(Some(index)),
-            (None, _) if required => Err(RecordingError::MissingColumn {
-                path: path.to_owned(),
-                line: header_line,
-                column: name.to_owned(),
-                found: header.to_vec(),
-            }),
-            (None, _) => Ok(None),
-        }
-    };
-    let required = |name: &str| -> Result<usize, RecordingError> {
-        find(name, true)?.ok_or_else(|| RecordingError::MissingColumn {
-            path: path.to_owned(),
-            line: header_line,
-            column: name.to_owned(),
-            found: header.to_vec(),
-        })
-    };
-    let optional = |name: &Option<String>, default: &str| match name {
-        Some(name) => required(name).map(Some),
-        None => find(default, false),
-    };
-    Ok(Positions {
-        t: required(&columns.t)?,
-        x: required(&columns.x)?,
-        v: optional(&columns.v, "v")?,
-        u: optional(&columns.u, "u")?,
     })
 }
 
@@ -631,7 +576,7 @@ fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, steps: usize) -> f64
 /// Reads `rows` samples starting at the first whole line after byte `offset`.
 fn probe(path: &Path, columns: &ColumnNames, offset: u64, rows: usize) -> Option<Recording> {
     let header = CsvStream::open(path, columns).ok()?;
-    let positions = resolve(path, &header.header, 1, columns).ok()?;
+    let positions = resolve_columns(path, &header.header, 1, columns).ok()?;
     let mut file = File::open(path).ok()?;
     file.seek(SeekFrom::Start(offset)).ok()?;
     let mut reader = BufReader::with_capacity(1 << 16, file);
