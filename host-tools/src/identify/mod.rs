@@ -384,27 +384,8 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     // Each candidate is refined before they are compared: on a record of T seconds a bin is
     // 2π/T wide, and half a bin of phase drift spoils the fit of the true line more than a
     // harmonic's fit is spoiled (a 60 s record then prefers 2Ω to Ω).
-    let g = (5f64.sqrt() - 1.0) / 2.0;
     let refine = |k: usize| {
-        let (mut lo, mut hi) = (bin_omega(k.saturating_sub(1)), bin_omega(k + 1));
-        let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        let (mut fa, mut fb) = (rss(a), rss(b));
-        for _ in 0..24 {
-            if fa < fb {
-                hi = b;
-                b = a;
-                fb = fa;
-                a = hi - g * (hi - lo);
-                fa = rss(a);
-            } else {
-                lo = a;
-                a = b;
-                fa = fb;
-                b = lo + g * (hi - lo);
-                fb = rss(b);
-            }
-        }
-        let w = 0.5 * (lo + hi);
+        let w = golden(rss, bin_omega(k.saturating_sub(1)), bin_omega(k + 1), 24);
         (w, rss(w))
     };
     peaks
@@ -660,4 +641,27 @@ pub fn render(report: &Report) -> String {
         ));
     }
     out
+}
+
+/// The minimum of `f` on [lo, hi] by golden section.
+pub(crate) fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, steps: usize) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..steps {
+        if fa < fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - g * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + g * (hi - lo);
+            fb = f(b);
+        }
+    }
+    0.5 * (lo + hi)
 }

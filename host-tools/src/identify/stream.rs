@@ -550,29 +550,6 @@ impl Rows {
     }
 }
 
-/// The minimum of `f` on [lo, hi] by golden section.
-fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, steps: usize) -> f64 {
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut fa, mut fb) = (f(a), f(b));
-    for _ in 0..steps {
-        if fa < fb {
-            hi = b;
-            b = a;
-            fb = fa;
-            a = hi - g * (hi - lo);
-            fa = f(a);
-        } else {
-            lo = a;
-            a = b;
-            fa = fb;
-            b = lo + g * (hi - lo);
-            fb = f(b);
-        }
-    }
-    0.5 * (lo + hi)
-}
-
 /// Reads `rows` samples starting at the first whole line after byte `offset`.
 fn probe(path: &Path, columns: &ColumnNames, offset: u64, rows: usize) -> Option<Recording> {
     let header = CsvStream::open(path, columns).ok()?;
@@ -717,7 +694,7 @@ fn refine_omega(
     let search = |rows: &Rows, omega: &mut f64, t_end: f64, steps: usize| {
         // The fit cannot tell ω from ω ± 2π/span; the last estimate is far closer than that.
         let half = 0.25 * std::f64::consts::TAU / (t_end - t0);
-        let w = golden(|w| rows.rss(w), *omega - half, *omega + half, steps);
+        let w = super::golden(|w| rows.rss(w), *omega - half, *omega + half, steps);
         if rows.rss(w) <= rows.rss(*omega) {
             *omega = w;
         }
