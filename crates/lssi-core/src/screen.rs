@@ -418,13 +418,32 @@ mod tests {
         let mut all = Factor::<f32, 8>::new(6);
         for k in 0..200 {
             let t = k as f32 * 0.05;
-            let row = [1.0, t.sin(), t.cos(), t.sin() * t.cos(), t.sin() + 1e-9, (2.0 * t).sin()];
-            all.update(&row, 0.3 * t.sin() - 2.0 * t.cos() + 0.01 * (k % 3) as f32, 1.0);
+            let row = [
+                1.0,
+                t.sin(),
+                t.cos(),
+                t.sin() * t.cos(),
+                t.sin() + 1e-9,
+                (2.0 * t).sin(),
+            ];
+            all.update(
+                &row,
+                0.3 * t.sin() - 2.0 * t.cos() + 0.01 * (k % 3) as f32,
+                1.0,
+            );
         }
         let mut work = [[0.0f32; 8]; 8];
         let mut solved = Solved::<f32, 8>::new();
         // More supports than the memory holds, each asked for twice in a row and again later.
-        let supports = [0b111111u32, 0b000110, 0b010111, 0b100001, 0b011110, 0b000001, 0];
+        let supports = [
+            0b111111u32,
+            0b000110,
+            0b010111,
+            0b100001,
+            0b011110,
+            0b000001,
+            0,
+        ];
         for round in 0..3 {
             for &support in &supports {
                 for _ in 0..2 {
@@ -432,7 +451,11 @@ mod tests {
                     let used = all.solve_in(support, &mut fresh, &mut work);
                     let remembered = solved.solve(&all, support, &mut kept, &mut work);
                     assert_eq!(remembered, used, "{round} {support:b}");
-                    assert_eq!(kept.map(f32::to_bits), fresh.map(f32::to_bits), "{support:b}");
+                    assert_eq!(
+                        kept.map(f32::to_bits),
+                        fresh.map(f32::to_bits),
+                        "{support:b}"
+                    );
                 }
             }
         }

@@ -224,7 +224,6 @@ impl<T: Real, const P: usize> Halves<T, P> {
     }
 }
 
-
 /// x^n for the forgetting factors (0 < x ≤ 1), as exp(n·ln x): `libm::exp` and `libm::log`
 /// are on the device anyway (the memory's λ, the threshold grid), `libm::pow` would add
 /// 2.9 KB of flash for these three calls at configuration. Within a few ulps of pow.
