@@ -4,7 +4,9 @@ mod common;
 
 use common::*;
 use lssi_device::wire::config_to_wire;
-use lssi_proto::{DeviceMsg, HostMsg, PROTOCOL_VERSION, PolyFamily, WireConfig};
+use lssi_proto::{
+    DeviceMsg, HostMsg, PROTOCOL_VERSION, PolyFamily, WireChannels, WireConfig, WireLibrary,
+};
 use proptest::collection::vec;
 use proptest::prelude::*;
 
@@ -97,27 +99,31 @@ fn wire_config() -> impl Strategy<Value = WireConfig> {
     )
         .prop_map(
             |(
-                (sample_period_s, window, derivative_degree, poly_order, family, constant),
-                (harmonics, use_u, omega, has_v, has_u),
-                (memory_time_s, screening_period, thresholds, smoothing, row_stride),
+                (sample_period, window, derivative_degree, poly_order, family, constant),
+                (harmonics, input, omega, velocity, input_channel),
+                (memory, screening_period, thresholds, smoothing, row_stride),
                 (parsimony, offsets, max_abs, test_rows),
             )| WireConfig {
-                sample_period_s,
+                sample_period,
                 window,
                 derivative_degree,
-                poly_order,
-                poly_family: [
-                    PolyFamily::All,
-                    PolyFamily::Families,
-                    PolyFamily::OddFamilies,
-                ][usize::from(family)],
-                constant,
-                harmonics,
-                use_u,
+                library: WireLibrary {
+                    poly_order,
+                    family: [
+                        PolyFamily::All,
+                        PolyFamily::Families,
+                        PolyFamily::OddFamilies,
+                    ][usize::from(family)],
+                    constant,
+                    harmonics,
+                    input,
+                },
                 omega,
-                has_v,
-                has_u,
-                memory_time_s,
+                channels: WireChannels {
+                    velocity,
+                    input: input_channel,
+                },
+                memory,
                 screening_period,
                 thresholds,
                 smoothing,
@@ -174,14 +180,14 @@ proptest! {
     ) {
         let mut host = SmallHost::default();
         host.exchange(&HostMsg::Configure(config));
-        let mut batch = lssi_proto::SampleBatch::new(0, lssi_proto::Channels::new(config.has_v, config.has_u));
+        let mut batch = lssi_proto::SampleBatch::new(0, lssi_proto::Channels::new(config.channels.velocity, config.channels.input));
         let mut seq = 0;
         for (t, x) in values {
             let sample = lssi_proto::WireSample {
                 t,
                 x,
-                v: config.has_v.then_some(x),
-                u: config.has_u.then_some(-x),
+                v: config.channels.velocity.then_some(x),
+                u: config.channels.input.then_some(-x),
             };
             if let Err(sample) = batch.push(sample) {
                 host.exchange(&HostMsg::Samples(batch));

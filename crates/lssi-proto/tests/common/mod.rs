@@ -5,7 +5,8 @@ use lssi_proto::{
     Channels, CompactBatch, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, I16Encoding,
     MAX_BATCH, MAX_COMPACT_BATCH, MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, MODEL_PART_LEN, Message,
     ModelPart, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch, SampleEncoding,
-    SnapshotCause, SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
+    SnapshotCause, SolutionSummary, TermCode, TermKind, WireChannels, WireConfig, WireLibrary,
+    WireSample, encode,
 };
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -92,31 +93,27 @@ pub fn config() -> impl Strategy<Value = WireConfig> {
     )
         .prop_map(
             |(
-                (
-                    sample_period_s,
-                    window,
-                    derivative_degree,
-                    poly_order,
-                    poly_family,
-                    constant,
-                    harmonics,
-                ),
-                (use_u, omega, has_v, has_u),
-                (memory_time_s, screening_period, thresholds, smoothing, row_stride),
+                (sample_period, window, derivative_degree, poly_order, family, constant, harmonics),
+                (input, omega, velocity, input_channel),
+                (memory, screening_period, thresholds, smoothing, row_stride),
                 (parsimony, offsets, max_abs, test_rows),
             )| WireConfig {
-                sample_period_s,
+                sample_period,
                 window,
                 derivative_degree,
-                poly_order,
-                poly_family,
-                constant,
-                harmonics,
-                use_u,
+                library: WireLibrary {
+                    poly_order,
+                    family,
+                    constant,
+                    harmonics,
+                    input,
+                },
                 omega,
-                has_v,
-                has_u,
-                memory_time_s,
+                channels: WireChannels {
+                    velocity,
+                    input: input_channel,
+                },
+                memory,
                 screening_period,
                 thresholds,
                 smoothing,
@@ -380,18 +377,22 @@ pub fn worst_batch() -> SampleBatch {
 
 pub fn worst_config() -> WireConfig {
     WireConfig {
-        sample_period_s: 1e-3,
+        sample_period: 1e-3,
         window: u16::MAX,
         derivative_degree: u8::MAX,
-        poly_order: u8::MAX,
-        poly_family: PolyFamily::OddFamilies,
-        constant: true,
-        harmonics: u8::MAX,
-        use_u: true,
+        library: WireLibrary {
+            poly_order: u8::MAX,
+            family: PolyFamily::OddFamilies,
+            constant: true,
+            harmonics: u8::MAX,
+            input: true,
+        },
         omega: 21.4,
-        has_v: true,
-        has_u: true,
-        memory_time_s: Some(10.0),
+        channels: WireChannels {
+            velocity: true,
+            input: true,
+        },
+        memory: Some(10.0),
         screening_period: u32::MAX,
         thresholds: u8::MAX,
         smoothing: true,
