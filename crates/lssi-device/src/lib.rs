@@ -120,13 +120,13 @@ mod stats;
 pub mod wire;
 
 pub use device::Device;
-pub use lssi_proto::CostUnit;
-pub use platform::{CostMeter, NoCost, Transport};
-pub use stats::Stats;
 #[cfg(doc)]
 use lssi_core::Identifier;
+pub use lssi_proto::CostUnit;
 #[cfg(doc)]
 use lssi_proto::{DeviceMsg, MAX_BATCH, PROTOCOL_VERSION};
+pub use platform::{CostMeter, NoCost, Transport};
+pub use stats::Stats;
 
 /// Window capacity of the firmware's identifier, in samples: the largest derivative window
 /// a `Configure` may ask for.
