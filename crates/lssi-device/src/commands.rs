@@ -57,10 +57,12 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 Command::from_host(command)
             }
-            Err(error) => match self.frame_error(error, link)? {
-                Some(command) => command,
-                None => return Ok(()),
-            },
+            Err(error) => {
+                if !self.frame_error(error, link)? {
+                    return Ok(());
+                }
+                Command::Hello
+            }
         };
         match command {
             Command::Hello => self.send_hello(link),
@@ -71,31 +73,27 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
-    /// Counts a frame that did not decode and says what to answer: `Hello` to another
-    /// protocol version, `Nak Decode` (sent here) to a frame that passed the CRC but does
-    /// not decode, nothing to one that failed COBS or the CRC.
-    fn frame_error<L: Transport>(
-        &mut self,
-        error: Error,
-        link: &mut L,
-    ) -> Result<Option<Command>, L::Error> {
+    /// Counts a frame that did not decode and answers it: true when the answer is our
+    /// `HelloReply` (another protocol version), false when it was sent here (`Nak Decode`
+    /// to a frame that passed the CRC but does not decode) or there is none (COBS, CRC).
+    fn frame_error<L: Transport>(&mut self, error: Error, link: &mut L) -> Result<bool, L::Error> {
         match error {
             Error::VersionMismatch { theirs, .. } => {
                 // The README's advice: answer with our version; the host reports the mismatch.
                 log!(warn, "host speaks protocol version {=u16}", theirs);
                 let _ = theirs;
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
-                Ok(Some(Command::Hello))
+                Ok(true)
             }
             Error::Decode => {
                 self.stats.decode_errors = self.stats.decode_errors.wrapping_add(1);
                 self.nak(link, self.next_seq, NakReason::Decode)?;
-                Ok(None)
+                Ok(false)
             }
             _ => {
                 // COBS, CRC, overflow: the frame cannot be attributed; the host resends.
                 self.stats.crc_errors = self.stats.crc_errors.wrapping_add(1);
-                Ok(None)
+                Ok(false)
             }
         }
     }
