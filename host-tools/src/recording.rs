@@ -39,6 +39,7 @@ use std::path::{Path, PathBuf};
 /// In a [`Recording`], `v` and `u` are `Some` exactly when that data was read, so the struct
 /// reads the same file the same way again.
 #[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
+#[command(next_help_heading = "Input")]
 pub struct ColumnNames {
     /// Header name of the time column (seconds).
     #[arg(long = "t-col", value_name = "NAME", default_value = "t")]

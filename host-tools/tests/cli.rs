@@ -146,3 +146,65 @@ fn rejected_samples_are_named_on_stderr_and_the_rest_identifies() {
     let terms = report["terms"].as_array().unwrap();
     assert!(terms.iter().any(|t| t["term"] == "x^3"), "{report}");
 }
+
+/// `lssi identify --help` reads in the order of the work: where the data comes from, the
+/// library, the identifier's tunables, then what is printed; each flag under its heading.
+#[test]
+fn identify_help_groups_its_flags_input_library_identifier_output() {
+    let out = lssi(&["identify", "--help"]);
+    assert_eq!(out.status.code(), Some(0));
+    let help = text(&out.stdout);
+    // The heading each flag is listed under, in the order they appear.
+    let mut heading = "";
+    let mut listed = Vec::new();
+    for line in help.lines() {
+        if !line.starts_with(' ') && line.ends_with(':') {
+            heading = line.trim_end_matches(':');
+        } else if let Some(flag) = line
+            .trim_start()
+            .trim_start_matches("-h, ")
+            .strip_prefix("--")
+        {
+            let flag = flag.split([' ', ',']).next().unwrap();
+            listed.push((heading.to_owned(), flag.to_owned()));
+        }
+    }
+    let headings: Vec<&str> =
+        listed
+            .iter()
+            .map(|(h, _)| h.as_str())
+            .fold(Vec::new(), |mut seen, h| {
+                if seen.last() != Some(&h) {
+                    seen.push(h);
+                }
+                seen
+            });
+    assert_eq!(
+        headings,
+        ["Options", "Input", "Library", "Identifier", "Output"],
+        "{help}"
+    );
+    let under = |flag: &str| {
+        listed
+            .iter()
+            .find(|(_, f)| f == flag)
+            .map(|(h, _)| h.as_str())
+    };
+    for (flag, expected) in [
+        ("t-col", "Input"),
+        ("u-col", "Input"),
+        ("quantise", "Input"),
+        ("omega", "Library"),
+        ("poly-order", "Library"),
+        ("family", "Library"),
+        ("memory", "Identifier"),
+        ("f64", "Identifier"),
+        ("refine", "Identifier"),
+        ("json", "Output"),
+        ("csv", "Output"),
+        ("track", "Output"),
+        ("settle-tol", "Output"),
+    ] {
+        assert_eq!(under(flag), Some(expected), "--{flag} in {help}");
+    }
+}

@@ -9,14 +9,10 @@ use lssi_host::synth::noise::NoiseKind;
 use lssi_host::synth::paper::{PaperOptions, generate_paper};
 use lssi_host::synth::truth::score;
 
-const TRUTH: [(&str, f64); 6] = [
-    ("x", -1.0),
-    ("v", 1.0),
-    ("x^2", 2.0),
-    ("x^3", -4.0),
-    ("x^2*v", -2.0),
-    ("cos(2t)", 5.0),
-];
+/// Eq. 17's coefficients at the generator's ε (one copy, in lssi-testkit).
+fn truth() -> [(&'static str, f64); 6] {
+    lssi_testkit::eq17_truth(PaperOptions::default().epsilon)
+}
 
 fn paper_options(f32: bool) -> Options {
     Options {
@@ -45,7 +41,7 @@ fn scored(opts: &PaperOptions, options: &Options) -> Scored {
     let offset_x = generated.truth.noise.offset_x;
     let recording = generated.to_recording("eq17.csv");
     let report = identify_recording(&recording, options).expect("identifies");
-    let (errors, spurious) = score(&report, &TRUTH);
+    let (errors, spurious) = score(&report, &truth());
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
     let worst = errors.iter().cloned().fold(0.0, f64::max);
     Scored {
@@ -193,7 +189,7 @@ fn bad_samples_are_counted_and_the_rest_still_identifies() {
     recording.t[7000] = recording.t[6999];
     let report = identify_recording(&recording, &paper_options(true)).expect("identifies");
     assert_eq!(report.rejected, 3);
-    let (errors, spurious) = score(&report, &TRUTH);
+    let (errors, spurious) = score(&report, &truth());
     assert!(
         errors.iter().all(|e| *e < 1.0) && spurious == 0,
         "{errors:?} {spurious}"

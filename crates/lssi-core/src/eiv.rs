@@ -235,6 +235,62 @@ mod tests {
     use super::*;
     use crate::library::{Library, LibraryConfig};
 
+    /// The equation the test's rows obey: y = −x + 0.5v − 2x³ − 0.8x²v + 3 cos t.
+    fn expect(term: Term) -> f64 {
+        match term {
+            Term::Monomial { px: 1, pv: 0 } => -1.0,
+            Term::Monomial { px: 0, pv: 1 } => 0.5,
+            Term::Monomial { px: 3, pv: 0 } => -2.0,
+            Term::Monomial { px: 2, pv: 1 } => -0.8,
+            Term::Cos(1) => 3.0,
+            _ => 0.0,
+        }
+    }
+
+    /// A deterministic pseudo-random Gaussian stream (Box–Muller on an LCG).
+    struct Gauss(u64);
+
+    impl Gauss {
+        fn uniform(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+
+        fn next(&mut self) -> f64 {
+            let (a, b) = (self.uniform(), self.uniform());
+            libm::sqrt(-2.0 * libm::log(a)) * libm::cos(2.0 * core::f64::consts::PI * b)
+        }
+    }
+
+    /// 200,000 rows of [`expect`]'s equation with row noise of covariances `noise` (e_x and
+    /// e_y correlated, e_v independent), accumulated into a factor.
+    fn noisy_rows(library: &Library<16>, noise: &RowNoise<f64>) -> Factor<f64, 16> {
+        let n = library.terms().len();
+        let mut factor: Factor<f64, 16> = Factor::new(n);
+        let mut gauss = Gauss(0x2545_f491_4f6c_dd1d);
+        let truth =
+            |x: f64, v: f64, c: f64| -x + 0.5 * v - 2.0 * x * x * x - 0.8 * x * x * v + 3.0 * c;
+        let mut row = [0.0f64; 16];
+        for i in 0..200_000 {
+            let t = i as f64 * 0.01;
+            let (x, v) = (
+                libm::sin(0.7 * t) + 0.3 * libm::cos(1.9 * t),
+                libm::cos(1.1 * t),
+            );
+            let y = truth(x, v, libm::cos(t));
+            let (g1, g2, g3) = (gauss.next(), gauss.next(), gauss.next());
+            let ex = libm::sqrt(noise.xx) * g1;
+            let ev = libm::sqrt(noise.vv) * g2;
+            let ey = noise.xy / libm::sqrt(noise.xx) * g1 + 0.3 * g3;
+            library.evaluate_sin_cos(x + ex, v + ev, libm::sin(t), libm::cos(t), 0.0, &mut row);
+            factor.update(&row[..n], y + ey, 1.0);
+        }
+        factor
+    }
+
     /// x uniform, v = x' of a sinusoid: a row noise added with known covariances; the
     /// corrected least squares recovers the noise-free coefficients, the plain one does not.
     #[test]
@@ -246,60 +302,21 @@ mod tests {
         .unwrap();
         let terms = library.terms();
         let n = terms.len();
-        let (xx, vv, xy) = (0.02f64, 0.05f64, -0.01f64);
-        let mut noisy_f: Factor<f64, 16> = Factor::new(n);
-        // A deterministic pseudo-random Gaussian stream (Box–Muller on an LCG).
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut uniform = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        let noise = RowNoise {
+            xx: 0.02,
+            vv: 0.05,
+            xy: -0.01,
+            vy: 0.0,
         };
-        let mut gauss = || {
-            let (a, b) = (uniform(), uniform());
-            libm::sqrt(-2.0 * libm::log(a)) * libm::cos(2.0 * core::f64::consts::PI * b)
-        };
-        let truth =
-            |x: f64, v: f64, c: f64| -x + 0.5 * v - 2.0 * x * x * x - 0.8 * x * x * v + 3.0 * c;
-        let mut row = [0.0f64; 16];
-        for i in 0..200_000 {
-            let t = i as f64 * 0.01;
-            let (x, v) = (
-                libm::sin(0.7 * t) + 0.3 * libm::cos(1.9 * t),
-                libm::cos(1.1 * t),
-            );
-            let y = truth(x, v, libm::cos(t));
-            // e_x and e_y correlated (xy), e_v independent.
-            let (g1, g2, g3) = (gauss(), gauss(), gauss());
-            let ex = libm::sqrt(xx) * g1;
-            let ev = libm::sqrt(vv) * g2;
-            let ey = xy / libm::sqrt(xx) * g1 + 0.3 * g3;
-            library.evaluate_sin_cos(x + ex, v + ev, libm::sin(t), libm::cos(t), 0.0, &mut row);
-            noisy_f.update(&row[..n], y + ey, 1.0);
-        }
+        let noisy_f = noisy_rows(&library, &noise);
         let full = (1u32 << n) - 1;
         let mut plain = [0.0; 16];
         noisy_f.solve(full, &mut plain);
         let mut corrected_f = noisy_f.clone();
-        let noise = RowNoise {
-            xx,
-            vv,
-            xy,
-            vy: 0.0,
-        };
         let mut scratch = [[0.0; 16]; 16];
         assert!(correct(&mut corrected_f, terms, &noise, &mut scratch));
         let mut corrected = [0.0; 16];
         corrected_f.solve(full, &mut corrected);
-        let expect = |term: Term| match term {
-            Term::Monomial { px: 1, pv: 0 } => -1.0,
-            Term::Monomial { px: 0, pv: 1 } => 0.5,
-            Term::Monomial { px: 3, pv: 0 } => -2.0,
-            Term::Monomial { px: 2, pv: 1 } => -0.8,
-            Term::Cos(1) => 3.0,
-            _ => 0.0,
-        };
         let worst = |c: &[f64; 16]| {
             terms
                 .iter()

@@ -11,6 +11,7 @@
 //!
 //! let config = Config { omega: 21.4, memory: Some(30.0), ..Config::default() };
 //! let wire = config_to_wire(&config).unwrap();
+//! assert_eq!((wire.sample_period, wire.memory), (config.sample_period, config.memory));
 //! assert_eq!(config_from_wire(&wire), config);
 //! ```
 //!
@@ -24,7 +25,7 @@ use lssi_core::library::Library;
 use lssi_core::{Channels, Config, LibraryConfig, Model, PolyFamily, Real, Solution, Term};
 use lssi_proto::{
     MAX_SOLUTIONS, MAX_TERMS, ModelSnapshot, SnapshotCause, SolutionSummary, TermCode, TermKind,
-    WireConfig,
+    WireChannels, WireConfig, WireLibrary,
 };
 
 /// Why a value cannot cross the link, or does not fit the other end.
@@ -100,18 +101,22 @@ pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
     })?;
     let library = &config.library;
     Ok(WireConfig {
-        sample_period_s: config.sample_period,
+        sample_period: config.sample_period,
         window,
         derivative_degree: config.derivative_degree,
-        poly_order: library.poly_order,
-        poly_family: family_to_wire(library.family),
-        constant: library.constant,
-        harmonics: library.harmonics,
-        use_u: library.input,
+        library: WireLibrary {
+            poly_order: library.poly_order,
+            family: family_to_wire(library.family),
+            constant: library.constant,
+            harmonics: library.harmonics,
+            input: library.input,
+        },
         omega: config.omega,
-        has_v: config.channels.velocity,
-        has_u: config.channels.input,
-        memory_time_s: config.memory,
+        channels: WireChannels {
+            velocity: config.channels.velocity,
+            input: config.channels.input,
+        },
+        memory: config.memory,
         screening_period: config.screening_period,
         thresholds: config.thresholds,
         smoothing: config.smoothing,
@@ -128,22 +133,22 @@ pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
 /// The configuration a [`WireConfig`] describes, unvalidated (`Identifier::new` validates).
 pub fn config_from_wire(wire: &WireConfig) -> Config {
     Config {
-        sample_period: wire.sample_period_s,
+        sample_period: wire.sample_period,
         window: usize::from(wire.window),
         derivative_degree: wire.derivative_degree,
         library: LibraryConfig {
-            poly_order: wire.poly_order,
-            family: family_from_wire(wire.poly_family),
-            constant: wire.constant,
-            harmonics: wire.harmonics,
-            input: wire.use_u,
+            poly_order: wire.library.poly_order,
+            family: family_from_wire(wire.library.family),
+            constant: wire.library.constant,
+            harmonics: wire.library.harmonics,
+            input: wire.library.input,
         },
         omega: wire.omega,
         channels: Channels {
-            velocity: wire.has_v,
-            input: wire.has_u,
+            velocity: wire.channels.velocity,
+            input: wire.channels.input,
         },
-        memory: wire.memory_time_s,
+        memory: wire.memory,
         screening_period: wire.screening_period,
         thresholds: wire.thresholds,
         smoothing: wire.smoothing,

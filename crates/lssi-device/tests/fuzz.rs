@@ -4,7 +4,8 @@ mod common;
 
 use common::*;
 use lssi_device::wire::config_to_wire;
-use lssi_proto::{DeviceMsg, HostMsg, PROTOCOL_VERSION, PolyFamily, WireConfig};
+use lssi_proto::{DeviceMsg, HostMsg, PROTOCOL_VERSION};
+use lssi_testkit::wire::{edge_f64, valid_wire_config};
 use proptest::collection::vec;
 use proptest::prelude::*;
 
@@ -58,79 +59,6 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     ]
 }
 
-fn any_f64() -> impl Strategy<Value = f64> {
-    prop_oneof![
-        any::<u64>().prop_map(f64::from_bits),
-        Just(0.0),
-        Just(1e-3),
-        Just(-1.0),
-        Just(f64::NAN),
-        Just(f64::INFINITY),
-        Just(f64::MIN_POSITIVE),
-    ]
-}
-
-/// Configurations with every field anywhere, weighted toward the edges of the valid range.
-fn wire_config() -> impl Strategy<Value = WireConfig> {
-    (
-        (any_f64(), 0u16..80, 0u8..10, 0u8..11, 0u8..3, any::<bool>()),
-        (
-            0u8..10,
-            any::<bool>(),
-            any_f64(),
-            any::<bool>(),
-            any::<bool>(),
-        ),
-        (
-            proptest::option::of(any_f64()),
-            0u32..50,
-            any::<u8>(),
-            any::<bool>(),
-            0u16..6,
-        ),
-        (
-            any_f64(),
-            any::<bool>(),
-            any_f64(),
-            prop_oneof![Just(0u16), 0u16..40],
-        ),
-    )
-        .prop_map(
-            |(
-                (sample_period_s, window, derivative_degree, poly_order, family, constant),
-                (harmonics, use_u, omega, has_v, has_u),
-                (memory_time_s, screening_period, thresholds, smoothing, row_stride),
-                (parsimony, offsets, max_abs, test_rows),
-            )| WireConfig {
-                sample_period_s,
-                window,
-                derivative_degree,
-                poly_order,
-                poly_family: [
-                    PolyFamily::All,
-                    PolyFamily::Families,
-                    PolyFamily::OddFamilies,
-                ][usize::from(family)],
-                constant,
-                harmonics,
-                use_u,
-                omega,
-                has_v,
-                has_u,
-                memory_time_s,
-                screening_period,
-                thresholds,
-                smoothing,
-                row_stride,
-                parsimony,
-                offsets,
-                max_abs,
-                test_rows,
-                encoding: lssi_proto::SampleEncoding::F32,
-            },
-        )
-}
-
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
 
@@ -169,19 +97,19 @@ proptest! {
 
     #[test]
     fn arbitrary_configurations_and_samples_never_panic(
-        config in wire_config(),
-        values in vec((any_f64(), any::<u32>().prop_map(f32::from_bits)), 0..150),
+        config in valid_wire_config(),
+        values in vec((edge_f64(), any::<u32>().prop_map(f32::from_bits)), 0..150),
     ) {
         let mut host = SmallHost::default();
         host.exchange(&HostMsg::Configure(config));
-        let mut batch = lssi_proto::SampleBatch::new(0, lssi_proto::Channels::new(config.has_v, config.has_u));
+        let mut batch = lssi_proto::SampleBatch::new(0, lssi_proto::Channels::new(config.channels.velocity, config.channels.input));
         let mut seq = 0;
         for (t, x) in values {
             let sample = lssi_proto::WireSample {
                 t,
                 x,
-                v: config.has_v.then_some(x),
-                u: config.has_u.then_some(-x),
+                v: config.channels.velocity.then_some(x),
+                u: config.channels.input.then_some(-x),
             };
             if let Err(sample) = batch.push(sample) {
                 host.exchange(&HostMsg::Samples(batch));

@@ -100,7 +100,7 @@ fn a_bad_configuration_is_naked_and_the_old_one_stays() {
     );
     assert_eq!(host.device.config(), Some(&duffing_config()));
     wire.window = 63;
-    wire.poly_order = 9; // 55 monomials: beyond 16 terms
+    wire.library.poly_order = 9; // 55 monomials: beyond 16 terms
     let asked = lssi_core::Library::<64>::count(&config_from_wire(&wire).library);
     assert!(asked > DEFAULT_TERMS);
     // A library over the capacity is refused naming the size asked for and the limit.
@@ -115,8 +115,8 @@ fn a_bad_configuration_is_naked_and_the_old_one_stays() {
         }]
     );
     // Poly order 5 and 5 harmonics (32 terms), the largest library the host identifies.
-    wire.poly_order = 5;
-    wire.harmonics = 5;
+    wire.library.poly_order = 5;
+    wire.library.harmonics = 5;
     let asked = lssi_core::Library::<64>::count(&config_from_wire(&wire).library);
     assert!(matches!(
         host.exchange(&HostMsg::Configure(wire))[..],

@@ -95,42 +95,35 @@ pub enum PolyFamily {
     OddFamilies,
 }
 
-/// The identifier's configuration as the host sends it: `lssi_core::Config`, field for field.
+/// The identifier's configuration as the host sends it: `lssi_core::Config`, field for field
+/// and name for name (`library` and `channels` are its `LibraryConfig` and `Channels`).
 ///
 /// The device rebuilds exactly the `Config` the host computed (`lssi_device::wire` holds
 /// the conversions both sides use), so that the device's identifier and the host's
 /// `lssi identify --f32` compute bit for bit the same model. Every float travels with the
 /// width it has in `Config`. A plain record: the device validates it once, when it builds
 /// the identifier, and naks [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it
-/// cannot. Field changes bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
+/// cannot. Field changes bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION); the nested
+/// structs are no framing (postcard writes a struct as its fields in order), so the bytes
+/// are those of the flat record of version 5.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct WireConfig {
     /// Nominal sample period in seconds (samples carry their own exact times).
-    pub sample_period_s: f64,
+    pub sample_period: f64,
     /// Window of the local derivative estimate, in samples.
     pub window: u16,
     /// Degree of the local polynomial of the derivative estimate.
     pub derivative_degree: u8,
-    /// Highest total order of the (x, v) monomials.
-    pub poly_order: u8,
-    /// Which monomials.
-    pub poly_family: PolyFamily,
-    /// Whether the constant term is a candidate.
-    pub constant: bool,
-    /// sin/cos(kΩt) for k = 1..=`harmonics` (0 leaves them out).
-    pub harmonics: u8,
-    /// Whether the measured excitation u is a candidate term (`LibraryConfig::input` in lssi-core).
-    pub use_u: bool,
+    /// The candidate terms.
+    pub library: WireLibrary,
     /// Base angular frequency Ω in rad/s, as the host chose or estimated it (ignored
     /// without harmonics; the device does not estimate it).
     pub omega: f64,
-    /// Whether the samples carry a measured velocity v (otherwise it is estimated from x).
-    pub has_v: bool,
-    /// Whether the samples carry a measured excitation u.
-    pub has_u: bool,
+    /// Measured channels besides x.
+    pub channels: WireChannels,
     /// Memory time constant of the forgetting factor in seconds; `None` forgets nothing.
-    pub memory_time_s: Option<f64>,
+    pub memory: Option<f64>,
     /// Samples between thresholding sweeps (M).
     pub screening_period: u32,
     /// Points of the logarithmic threshold grid.
@@ -150,4 +143,31 @@ pub struct WireConfig {
     pub test_rows: u16,
     /// How the sample batches travel. Since version 5.
     pub encoding: SampleEncoding,
+}
+
+/// The candidate terms: `lssi_core::LibraryConfig`, field for field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireLibrary {
+    /// Highest total order of the (x, v) monomials.
+    pub poly_order: u8,
+    /// Which monomials.
+    pub family: PolyFamily,
+    /// Whether the constant term is a candidate.
+    pub constant: bool,
+    /// sin/cos(kΩt) for k = 1..=`harmonics` (0 leaves them out).
+    pub harmonics: u8,
+    /// Whether the measured excitation u is a candidate term.
+    pub input: bool,
+}
+
+/// Which measured channels the samples carry besides t and x: `lssi_core::Channels`, field
+/// for field.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireChannels {
+    /// A measured velocity v (otherwise it is estimated from x).
+    pub velocity: bool,
+    /// A measured excitation u.
+    pub input: bool,
 }

@@ -4,8 +4,8 @@ mod common;
 
 use common::frame;
 use lssi_proto::{
-    Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, PROTOCOL_VERSION, SampleBatch,
-    WireSample, decode_frame,
+    Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, PROTOCOL_VERSION, PolyFamily,
+    SampleBatch, SampleEncoding, WireChannels, WireConfig, WireLibrary, WireSample, decode_frame,
 };
 
 #[test]
@@ -95,4 +95,68 @@ fn golden_device_frames() {
         })
     );
     assert_eq!(bytes[..5], [0x02, 0x07, 0x08, 55, 16]);
+}
+
+/// A configuration whose fields all differ from their neighbours, so that a reordering shows.
+fn golden_config() -> WireConfig {
+    WireConfig {
+        sample_period: 1e-3,
+        window: 301,
+        derivative_degree: 5,
+        library: WireLibrary {
+            poly_order: 7,
+            family: PolyFamily::Families,
+            constant: true,
+            harmonics: 2,
+            input: false,
+        },
+        omega: 21.4,
+        channels: WireChannels {
+            velocity: true,
+            input: false,
+        },
+        memory: Some(2.5),
+        screening_period: 10_000,
+        thresholds: 24,
+        smoothing: false,
+        row_stride: 4,
+        parsimony: 0.05,
+        offsets: true,
+        max_abs: 1e9,
+        test_rows: 64,
+        encoding: SampleEncoding::F32,
+    }
+}
+
+/// `WireConfig`'s bytes are those of protocol version 5's flat record (taken from main
+/// before the library and channel fields were nested and renamed after `Config`): nesting
+/// adds no framing in postcard, so the rename did not change the wire.
+#[test]
+fn golden_configure_frame() {
+    let payload = [
+        0xFC, 0xA9, 0xF1, 0xD2, 0x4D, 0x62, 0x50, 0x3F, 0xAD, 0x02, 0x05, 0x07, 0x01, 0x01, 0x02,
+        0x00, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0x35, 0x40, 0x01, 0x00, 0x01, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x00, 0x04, 0x40, 0x90, 0x4E, 0x18, 0x00, 0x04, 0x9A, 0x99, 0x99, 0x99, 0x99,
+        0x99, 0xA9, 0x3F, 0x01, 0x00, 0x00, 0x00, 0x00, 0x65, 0xCD, 0xCD, 0x41, 0x40, 0x00,
+    ];
+    let mut buf = [0u8; 128];
+    let bytes = postcard::to_slice(&golden_config(), &mut buf).expect("fits");
+    assert_eq!(bytes, payload);
+    assert_eq!(
+        postcard::from_bytes::<WireConfig>(&payload),
+        Ok(golden_config())
+    );
+    let golden = [
+        0x11, 0x01, 0xFC, 0xA9, 0xF1, 0xD2, 0x4D, 0x62, 0x50, 0x3F, 0xAD, 0x02, 0x05, 0x07, 0x01,
+        0x01, 0x02, 0x0A, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0x35, 0x40, 0x01, 0x02, 0x01, 0x01,
+        0x01, 0x01, 0x01, 0x01, 0x06, 0x04, 0x40, 0x90, 0x4E, 0x18, 0x0B, 0x04, 0x9A, 0x99, 0x99,
+        0x99, 0x99, 0x99, 0xA9, 0x3F, 0x01, 0x01, 0x01, 0x01, 0x06, 0x65, 0xCD, 0xCD, 0x41, 0x40,
+        0x05, 0xBF, 0xF8, 0x86, 0x7D, 0x00,
+    ];
+    assert_eq!(frame(&HostMsg::Configure(golden_config())), golden);
+    let mut bytes = golden;
+    assert_eq!(
+        decode_frame::<HostMsg>(&mut bytes),
+        Ok(HostMsg::Configure(golden_config()))
+    );
 }

@@ -113,7 +113,7 @@ proptest! {
     }
 
     #[test]
-    fn parts_fit_max_size(batch in batch(), config in config()) {
+    fn parts_fit_max_size(batch in batch(), config in any_wire_config()) {
         prop_assert!(postcard_len(&batch) <= SampleBatch::POSTCARD_MAX_SIZE);
         prop_assert!(postcard_len(&config) <= WireConfig::POSTCARD_MAX_SIZE);
     }

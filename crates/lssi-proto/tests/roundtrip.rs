@@ -44,7 +44,7 @@ fn every_host_message_round_trips() {
         messages.push(HostMsg::Samples(SampleBatch::new(0, channels)));
     }
     let mut config = worst_config();
-    config.memory_time_s = None;
+    config.memory = None;
     messages.push(HostMsg::Configure(config));
     for message in &messages {
         assert_eq!(&round_trip_host(message), message);

@@ -1,8 +1,9 @@
 //! # lssi-testkit — known truths for the lssi tests
 //!
 //! Systems whose equation of motion is known, integrated finely by classical RK4, and seeded
-//! noise: what the identifier's known-truth tests feed it. One copy, used by every crate's
-//! tests (a dev-dependency only; `publish = false`; no dependency on the lssi crates).
+//! noise: what the identifier's known-truth tests feed it; with the `wire` feature, the
+//! proptest strategies of the wire configuration ([`wire`]). One copy, used by every crate's
+//! tests (a dev-dependency only; `publish = false`; lssi-proto only for `wire`).
 //!
 //! ```
 //! use lssi_testkit::{Noise, duffing, eq17};
@@ -21,6 +22,8 @@
 
 pub mod ode;
 pub mod systems;
+#[cfg(feature = "wire")]
+pub mod wire;
 
 pub use ode::{State, integrate_at, rk4_step};
 pub use systems::{

@@ -31,6 +31,7 @@ impl From<Family> for lssi_core::PolyFamily {
 /// The identifier's flags: the library (Ω, harmonics, monomials), the smoothing and the
 /// memory.
 #[derive(Debug, Clone, Args)]
+#[command(next_help_heading = "Library")]
 pub struct IdentifierArgs {
     /// Base excitation frequency Ω in rad/s (default: estimated from the data).
     #[arg(long, value_name = "RAD_PER_S")]
@@ -45,10 +46,10 @@ pub struct IdentifierArgs {
     #[arg(long, value_enum, default_value_t = Family::All)]
     pub family: Family,
     /// Turn the k-neighbour smoothing off (the ablation).
-    #[arg(long)]
+    #[arg(long, help_heading = "Identifier")]
     pub no_smoothing: bool,
     /// Forgetting time constant in seconds (default: remember everything).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", help_heading = "Identifier")]
     pub memory: Option<f64>,
 }
 

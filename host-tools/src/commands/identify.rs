@@ -38,64 +38,87 @@ pub struct IdentifyArgs {
     /// gets its error in its row, and the exit code is 2 if any did.
     #[arg(value_name = "MORE.csv", num_args = 0..)]
     pub more: Vec<PathBuf>,
-    /// With several recordings: a CSV table (file, equation, terms, coefficients, samples,
-    /// rejected, error) instead of text.
-    #[arg(long, conflicts_with = "json")]
-    pub csv: bool,
-    /// The identifier's flags (shared with `lssi replay`).
+    /// Which header names hold which quantity.
     #[command(flatten)]
-    pub identifier: IdentifierArgs,
-    /// Compute in f32, as a device does (the default).
-    #[arg(long, conflicts_with = "f64")]
-    pub f32: bool,
-    /// Compute in f64 (the reference).
-    #[arg(long)]
-    pub f64: bool,
-    /// Also refine the selected terms' coefficients on simulation error (f64, host only):
-    /// reports the refined model with standard errors, its held-out fit and the free run's
-    /// NRMSE (`"refined"` in --json); the streaming model above stays the device's.
-    #[arg(long)]
-    pub refine: bool,
-    /// The unit of x, for the text report (e.g. m, mm, V).
-    #[arg(long, value_name = "UNIT", default_value = "[x]")]
-    pub unit: String,
-    /// Experimental: take the noise of the derivative estimates out of the normal equations
-    /// (errors in variables; rows as they are, without the test-function sums; host only,
-    /// the device protocol does not carry it)
-    #[arg(long)]
-    pub noise_correction: bool,
+    pub columns: ColumnNames,
     /// Identify the recording as `lssi replay --encoding i16` sends it: times on a uniform
     /// grid, values rounded to i16 quanta (one scale per channel), so the model is the one
     /// a compact replay must give.
-    #[arg(long, value_enum, value_name = "ENCODING", conflicts_with_all = ["more", "csv"])]
+    #[arg(
+        long,
+        value_enum,
+        value_name = "ENCODING",
+        conflicts_with_all = ["more", "csv"],
+        help_heading = "Input"
+    )]
     pub quantise: Option<Quantise>,
+    /// The identifier's flags (shared with `lssi replay` and `lssi plot`): the library,
+    /// then the smoothing and the memory.
+    #[command(flatten)]
+    pub identifier: IdentifierArgs,
+    /// Compute in f32, as a device does (the default).
+    #[arg(long, conflicts_with = "f64", help_heading = "Identifier")]
+    pub f32: bool,
+    /// Compute in f64 (the reference).
+    #[arg(long, help_heading = "Identifier")]
+    pub f64: bool,
+    /// Experimental: take the noise of the derivative estimates out of the normal equations
+    /// (errors in variables; rows as they are, without the test-function sums; host only,
+    /// the device protocol does not carry it)
+    #[arg(long, help_heading = "Identifier")]
+    pub noise_correction: bool,
+    /// Also refine the selected terms' coefficients on simulation error (f64, host only):
+    /// reports the refined model with standard errors, its held-out fit and the free run's
+    /// NRMSE (`"refined"` in --json); the streaming model above stays the device's.
+    #[arg(long, help_heading = "Identifier")]
+    pub refine: bool,
     /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub json: bool,
+    /// With several recordings: a CSV table (file, equation, terms, coefficients, samples,
+    /// rejected, error) instead of text.
+    #[arg(long, conflicts_with = "json", help_heading = "Output")]
+    pub csv: bool,
+    /// The unit of x, for the text report (e.g. m, mm, V).
+    #[arg(
+        long,
+        value_name = "UNIT",
+        default_value = "[x]",
+        help_heading = "Output"
+    )]
+    pub unit: String,
     /// Print the coefficients over time (one row per screening) and the settle time after a
     /// change, instead of the final model.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub track: bool,
     /// With --track: seconds between two screenings.
-    #[arg(long, value_name = "SECONDS", default_value_t = 0.25)]
+    #[arg(
+        long,
+        value_name = "SECONDS",
+        default_value_t = 0.25,
+        help_heading = "Output"
+    )]
     pub every: f64,
     /// With --track: the truth file (from `lssi gen`) whose coefficients after its drift are
     /// the reference of the settle time, and whose drift time is the change time.
-    #[arg(long, value_name = "FILE.json")]
+    #[arg(long, value_name = "FILE.json", help_heading = "Output")]
     pub truth: Option<PathBuf>,
     /// With --track: the time of the change, seconds [default: the truth's drift time].
     #[arg(
         long = "change-at",
         value_name = "SECONDS",
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        help_heading = "Output"
     )]
     pub change_at: Option<f64>,
     /// With --track: the relative tolerance of the settle time.
-    #[arg(long = "settle-tol", value_name = "FRACTION", default_value_t = 0.05)]
+    #[arg(
+        long = "settle-tol",
+        value_name = "FRACTION",
+        default_value_t = 0.05,
+        help_heading = "Output"
+    )]
     pub settle_tol: f64,
-    /// Which header names hold which quantity.
-    #[command(flatten)]
-    pub columns: ColumnNames,
 }
 
 impl IdentifyArgs {

@@ -23,10 +23,10 @@ pub struct PlotArgs {
     #[command(flatten)]
     pub identify: IdentifyArgs,
     /// Directory the figures go to (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", help_heading = "Output")]
     pub out: PathBuf,
     /// Unit of the displacement x, for the axis labels (e.g. m, mm); v is in UNIT/s.
-    #[arg(long, value_name = "UNIT")]
+    #[arg(long, value_name = "UNIT", help_heading = "Output")]
     pub x_unit: Option<String>,
 }
 

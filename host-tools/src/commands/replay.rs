@@ -102,15 +102,15 @@ pub struct ReplayArgs {
     /// Seconds the link goes on without progress before it gives up.
     #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
     pub deadline: f64,
+    /// Which header names hold which quantity.
+    #[command(flatten)]
+    pub columns: ColumnNames,
     /// The identifier's flags (shared with `lssi identify`).
     #[command(flatten)]
     pub identifier: IdentifierArgs,
     /// Print one JSON object instead of text.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub json: bool,
-    /// Which header names hold which quantity.
-    #[command(flatten)]
-    pub columns: ColumnNames,
 }
 
 impl ReplayArgs {

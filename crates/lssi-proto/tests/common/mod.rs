@@ -5,8 +5,10 @@ use lssi_proto::{
     Channels, CompactBatch, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, I16Encoding,
     MAX_BATCH, MAX_COMPACT_BATCH, MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, MODEL_PART_LEN, Message,
     ModelPart, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch, SampleEncoding,
-    SnapshotCause, SolutionSummary, TermCode, TermKind, WireConfig, WireSample, encode,
+    SnapshotCause, SolutionSummary, TermCode, TermKind, WireChannels, WireConfig, WireLibrary,
+    WireSample, encode,
 };
+pub use lssi_testkit::wire::{any_f64, any_wire_config};
 use proptest::collection::vec;
 use proptest::prelude::*;
 
@@ -22,11 +24,6 @@ pub fn cases(cases: u32) -> ProptestConfig {
 /// Any f32, NaNs and infinities included: the link must carry the bits, not the value.
 pub fn any_f32() -> impl Strategy<Value = f32> {
     any::<u32>().prop_map(f32::from_bits)
-}
-
-/// Any f64, bit for bit.
-pub fn any_f64() -> impl Strategy<Value = f64> {
-    any::<u64>().prop_map(f64::from_bits)
 }
 
 pub fn channels() -> impl Strategy<Value = Channels> {
@@ -61,75 +58,6 @@ pub fn batch() -> impl Strategy<Value = SampleBatch> {
     })
 }
 
-pub fn poly_family() -> impl Strategy<Value = PolyFamily> {
-    prop_oneof![
-        Just(PolyFamily::All),
-        Just(PolyFamily::Families),
-        Just(PolyFamily::OddFamilies)
-    ]
-}
-
-pub fn config() -> impl Strategy<Value = WireConfig> {
-    (
-        (
-            any_f64(),
-            any::<u16>(),
-            any::<u8>(),
-            any::<u8>(),
-            poly_family(),
-            any::<bool>(),
-            any::<u8>(),
-        ),
-        (any::<bool>(), any_f64(), any::<bool>(), any::<bool>()),
-        (
-            proptest::option::of(any_f64()),
-            any::<u32>(),
-            any::<u8>(),
-            any::<bool>(),
-            any::<u16>(),
-        ),
-        (any_f64(), any::<bool>(), any_f64(), any::<u16>()),
-    )
-        .prop_map(
-            |(
-                (
-                    sample_period_s,
-                    window,
-                    derivative_degree,
-                    poly_order,
-                    poly_family,
-                    constant,
-                    harmonics,
-                ),
-                (use_u, omega, has_v, has_u),
-                (memory_time_s, screening_period, thresholds, smoothing, row_stride),
-                (parsimony, offsets, max_abs, test_rows),
-            )| WireConfig {
-                sample_period_s,
-                window,
-                derivative_degree,
-                poly_order,
-                poly_family,
-                constant,
-                harmonics,
-                use_u,
-                omega,
-                has_v,
-                has_u,
-                memory_time_s,
-                screening_period,
-                thresholds,
-                smoothing,
-                row_stride,
-                parsimony,
-                offsets,
-                max_abs,
-                test_rows,
-                encoding: SampleEncoding::F32,
-            },
-        )
-}
-
 pub fn i16_encoding() -> impl Strategy<Value = I16Encoding> {
     (any::<f64>(), any::<f64>(), any::<[f32; 3]>()).prop_map(|(t0, dt, scale)| I16Encoding {
         t0,
@@ -161,11 +89,11 @@ pub fn host_msg() -> impl Strategy<Value = HostMsg> {
         Just(HostMsg::Hello {
             protocol_version: PROTOCOL_VERSION
         }),
-        config().prop_map(HostMsg::Configure),
+        any_wire_config().prop_map(HostMsg::Configure),
         batch().prop_map(HostMsg::Samples),
         Just(HostMsg::Query),
         Just(HostMsg::Reset),
-        (config(), i16_encoding()).prop_map(|(mut config, encoding)| {
+        (any_wire_config(), i16_encoding()).prop_map(|(mut config, encoding)| {
             config.encoding = SampleEncoding::I16(encoding);
             HostMsg::Configure(config)
         }),
@@ -380,18 +308,22 @@ pub fn worst_batch() -> SampleBatch {
 
 pub fn worst_config() -> WireConfig {
     WireConfig {
-        sample_period_s: 1e-3,
+        sample_period: 1e-3,
         window: u16::MAX,
         derivative_degree: u8::MAX,
-        poly_order: u8::MAX,
-        poly_family: PolyFamily::OddFamilies,
-        constant: true,
-        harmonics: u8::MAX,
-        use_u: true,
+        library: WireLibrary {
+            poly_order: u8::MAX,
+            family: PolyFamily::OddFamilies,
+            constant: true,
+            harmonics: u8::MAX,
+            input: true,
+        },
         omega: 21.4,
-        has_v: true,
-        has_u: true,
-        memory_time_s: Some(10.0),
+        channels: WireChannels {
+            velocity: true,
+            input: true,
+        },
+        memory: Some(10.0),
         screening_period: u32::MAX,
         thresholds: u8::MAX,
         smoothing: true,

@@ -1,0 +1,241 @@
+//! The identify task's part: the identifier fed from the queue, its screenings handed over
+//! on the snapshot.
+
+use super::{Clock, Event, Reading, Shared, Status};
+use core::cell::{Cell, RefCell};
+use core::sync::atomic::Ordering;
+use critical_section::Mutex;
+use heapless::spsc::Consumer;
+use lssi_core::{Config, Identifier, IdentifierSlot, Sample};
+use lssi_proto::SnapshotCause;
+
+/// The identify task's part: the identifier, fed from the queue, with its screenings
+/// handed to thread mode on the snapshot. In a `static` (it is all zero bytes until
+/// configured: `.bss`).
+pub struct Engine<const W: usize, const P: usize, const C: usize> {
+    slot: IdentifierSlot<f32, W, P, C>,
+    /// The sampling period, s (a sample's time is its index times this).
+    period: f64,
+    /// Configured since the snapshot was last filled: the snapshot's model is stale.
+    fresh: bool,
+    /// The recording ended; its final snapshot is still to be taken.
+    final_pending: bool,
+    ended: bool,
+    /// Clock ticks of the pushes since configured: sum, count, largest.
+    cost_sum: u64,
+    cost_count: u64,
+    cost_max: u32,
+}
+
+impl<const W: usize, const P: usize, const C: usize> Default for Engine<W, P, C> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
+    /// Not configured. `const`, all zero bytes.
+    pub const fn new() -> Self {
+        Self {
+            slot: IdentifierSlot::new(),
+            period: 0.0,
+            fresh: false,
+            final_pending: false,
+            ended: false,
+            cost_sum: 0,
+            cost_count: 0,
+            cost_max: 0,
+        }
+    }
+
+    /// The identifier, once configured.
+    pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
+        self.slot.get()
+    }
+
+    /// Configures the identifier in place (a refused configuration changes nothing).
+    pub fn configure(&mut self, config: Config) -> Result<(), lssi_core::ConfigError> {
+        self.slot.configure(config)?;
+        self.period = config.sample_period;
+        self.fresh = true;
+        self.final_pending = false;
+        self.ended = false;
+        self.cost_sum = 0;
+        self.cost_count = 0;
+        self.cost_max = 0;
+        Ok(())
+    }
+
+    /// Takes every event the queue holds: applies a requested configuration first, pushes
+    /// each sample (its time from its index), hands each scheduled screening's snapshot to
+    /// thread mode, and records each sample's latency by `clock`. Call it whenever the
+    /// timer has queued something (and when thread mode returns the snapshot, so that a
+    /// pending final snapshot is taken).
+    pub fn run<K: Clock>(
+        &mut self,
+        events: &mut Consumer<'_, Event>,
+        shared: &Shared<P>,
+        clock: &K,
+    ) {
+        if let Some(config) = critical_section::with(|cs| shared.pending.borrow(cs).take()) {
+            // A refused configuration was checked by thread mode before it was requested.
+            let _ = self.configure(config);
+        }
+        while let Some(event) = events.dequeue() {
+            shared.counters.consumed.fetch_add(1, Ordering::Relaxed);
+            match event {
+                Event::Sample {
+                    index,
+                    stamp,
+                    reading,
+                } => {
+                    let start = clock.now();
+                    self.push(index, reading, shared);
+                    let done = clock.now();
+                    let cost = done.wrapping_sub(start);
+                    self.cost_sum = self.cost_sum.saturating_add(u64::from(cost));
+                    self.cost_count += 1;
+                    self.cost_max = self.cost_max.max(cost);
+                    let latency = done.wrapping_sub(stamp);
+                    shared
+                        .counters
+                        .latency_max
+                        .fetch_max(latency, Ordering::Relaxed);
+                }
+                Event::End => {
+                    self.ended = true;
+                    self.final_pending = self.slot.get().is_some();
+                }
+            }
+        }
+        if self.final_pending && self.hand_over(shared, SnapshotCause::Final) {
+            self.final_pending = false;
+        }
+        self.publish(shared);
+    }
+
+    fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P>) {
+        let period = self.period;
+        let fresh = &mut self.fresh;
+        let Some(id) = self.slot.get_mut() else {
+            return;
+        };
+        let sample = Sample {
+            t: index as f64 * period,
+            x: reading.x,
+            v: reading.v,
+            u: reading.u,
+        };
+        // A rejected sample (NaN, saturated, wrong channels) is counted by the identifier.
+        let _ = id.push_with(sample, |id| {
+            match shared.take_free() {
+                Some(snapshot) => {
+                    if core::mem::replace(fresh, false) {
+                        snapshot.clear_model();
+                    }
+                    id.snapshot_into(snapshot);
+                    critical_section::with(|cs| {
+                        shared
+                            .full
+                            .borrow(cs)
+                            .set(Some((snapshot, SnapshotCause::Scheduled)))
+                    });
+                }
+                None => {
+                    shared
+                        .counters
+                        .screenings_skipped
+                        .fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            false
+        });
+    }
+
+    /// Takes the final snapshot if the snapshot is free.
+    fn hand_over(&mut self, shared: &Shared<P>, cause: SnapshotCause) -> bool {
+        let Some(id) = self.slot.get() else {
+            return true;
+        };
+        let Some(snapshot) = shared.take_free() else {
+            return false;
+        };
+        if core::mem::replace(&mut self.fresh, false) {
+            snapshot.clear_model();
+        }
+        id.snapshot_into(snapshot);
+        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause))));
+        true
+    }
+
+    fn publish(&self, shared: &Shared<P>) {
+        let status = match self.slot.get() {
+            Some(id) => {
+                let c = id.counters();
+                Status {
+                    samples: c.accepted,
+                    rejected: c.rejected(),
+                    rows: c.rows,
+                    screenings: c.screenings,
+                    buffer_fill: u16::try_from(id.buffered()).unwrap_or(u16::MAX),
+                    cost_mean: self
+                        .cost_sum
+                        .checked_div(self.cost_count)
+                        .map_or(0, |m| u32::try_from(m).unwrap_or(u32::MAX)),
+                    cost_max: self.cost_max,
+                    ended: self.ended && !self.final_pending,
+                }
+            }
+            None => Status {
+                ended: self.ended,
+                ..Status::default()
+            },
+        };
+        critical_section::with(|cs| shared.status.borrow(cs).set(status));
+    }
+}
+
+/// Where a board keeps the identify task's two resources between its runs: the engine and
+/// the queue's consumer, each moved out for the run and back after it (critical sections of
+/// a few instructions; the run itself is not in one).
+pub struct IdentifyTask<const W: usize, const P: usize, const C: usize> {
+    engine: Mutex<Cell<Option<&'static mut Engine<W, P, C>>>>,
+    events: Mutex<RefCell<Option<Consumer<'static, Event>>>>,
+}
+
+impl<const W: usize, const P: usize, const C: usize> Default for IdentifyTask<W, P, C> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const W: usize, const P: usize, const C: usize> IdentifyTask<W, P, C> {
+    /// Empty (in a `static`).
+    pub const fn new() -> Self {
+        Self {
+            engine: Mutex::new(Cell::new(None)),
+            events: Mutex::new(RefCell::new(None)),
+        }
+    }
+
+    /// Hands over the engine and the consumer end of the sample queue (at start-up).
+    pub fn give(&self, engine: &'static mut Engine<W, P, C>, events: Consumer<'static, Event>) {
+        critical_section::with(|cs| {
+            self.engine.borrow(cs).set(Some(engine));
+            self.events.borrow(cs).replace(Some(events));
+        });
+    }
+
+    /// The identify interrupt's body: [`Engine::run`] on what the queue holds.
+    pub fn run<K: Clock>(&self, shared: &Shared<P>, clock: &K) {
+        let engine = critical_section::with(|cs| self.engine.borrow(cs).take());
+        let events = critical_section::with(|cs| self.events.borrow(cs).take());
+        if let (Some(engine), Some(mut events)) = (engine, events) {
+            engine.run(&mut events, shared, clock);
+            critical_section::with(|cs| {
+                self.engine.borrow(cs).set(Some(engine));
+                self.events.borrow(cs).replace(Some(events));
+            });
+        }
+    }
+}

@@ -1,0 +1,37 @@
+//! The standalone instrument: the device samples its own sensor by a timer, identifies
+//! without a host and reports by itself. Board-independent and safe: a board (the QEMU
+//! stand-in, a real part with its HAL) wires these three parts to its interrupts.
+//!
+//! ```text
+//! timer interrupt (highest)   Sampler::tick   reading + timer stamp → Event queue (spsc, 64) ; full → overruns += 1
+//! identify (middle priority)  Engine::run     queue → Identifier::push_with; at a screening, a Snapshot → Shared
+//! thread mode (lowest)        Reporter        Snapshot → select() → Model ; Model + Health every period ; RX commands
+//! ```
+//!
+//! - **Time comes from the timer**: a sample's `t` is its index over the sampling rate, its
+//!   stamp the clock at the interrupt; when the identify task runs does not move either.
+//! - **No stall**: the screening (≈ 18 M instructions on the M4F) runs in thread mode on a
+//!   [`Snapshot`] while rows go on at a higher priority; the model is, bit for bit, the one
+//!   the identifier would have made in place (`Identifier::push_with`), so the host's
+//!   `lssi identify` gives the device's model.
+//! - **Ownership moves, nothing is shared mutably**: the one snapshot travels between the
+//!   identify task and thread mode as a `&'static mut` through two one-place mailboxes
+//!   (critical sections of a few instructions); counters are atomics.
+//!
+//! The board provides a [`Clock`] (a free-running tick counter), a [`Transport`] for
+//! frames, and calls [`Engine::run`] whenever the timer has queued a sample (e.g. by pending
+//! a software interrupt).
+
+mod engine;
+mod reporter;
+mod sampler;
+mod shared;
+
+#[cfg(doc)]
+use crate::Transport;
+pub use engine::{Engine, IdentifyTask};
+#[cfg(doc)]
+use lssi_core::Snapshot;
+pub use reporter::Reporter;
+pub use sampler::{STUCK_RUN, Sampler};
+pub use shared::{Clock, Counters, Event, EventQueue, QUEUE_SLOTS, Reading, Shared, Status};

@@ -1,0 +1,308 @@
+//! Thread mode's part: the screening, the reports and the host's commands.
+
+use super::{Clock, Shared};
+use crate::{Transport, wire};
+use core::sync::atomic::Ordering;
+use heapless::spsc::Consumer;
+use lssi_core::Config;
+use lssi_proto::{
+    CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
+    ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, encode,
+};
+
+/// Thread mode's part: screens the snapshot, keeps the latest model, sends Model and
+/// Health frames every period and answers the host's commands.
+pub struct Reporter<const W: usize, const P: usize, const C: usize> {
+    decoder: HostFrameDecoder,
+    buffer: [u8; MAX_DEVICE_FRAME_LEN],
+    latest: Option<ModelSnapshot>,
+    config: Option<Config>,
+    rate_hz: f32,
+    /// Clock ticks between reports (0: only on request).
+    period_ticks: u32,
+    last_report: u32,
+    frames_ok: u32,
+    crc_errors: u32,
+    decode_errors: u32,
+    watchdog: u32,
+    screen_cost: u32,
+    screen_cost_max: u32,
+    /// Frames sent.
+    pub frames_sent: u32,
+    finished: bool,
+    /// A host's configuration, accepted and not yet taken by the board to keep.
+    to_keep: Option<WireConfig>,
+}
+
+impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
+    /// Reports every `period_ticks` clock ticks, about the identifier configured with
+    /// `config` (the board's default or stored one), sampled at `rate_hz`.
+    pub const fn new(config: Config, rate_hz: f32, period_ticks: u32) -> Self {
+        Self {
+            decoder: HostFrameDecoder::new(),
+            buffer: [0; MAX_DEVICE_FRAME_LEN],
+            latest: None,
+            config: Some(config),
+            rate_hz,
+            period_ticks,
+            last_report: 0,
+            frames_ok: 0,
+            crc_errors: 0,
+            decode_errors: 0,
+            watchdog: 0,
+            screen_cost: 0,
+            screen_cost_max: 0,
+            frames_sent: 0,
+            finished: false,
+            to_keep: None,
+        }
+    }
+
+    /// The configuration a host sent and this device accepted since the last call, for a
+    /// board that keeps it across resets (in flash) and starts from it at power-up.
+    pub fn take_accepted(&mut self) -> Option<WireConfig> {
+        self.to_keep.take()
+    }
+
+    /// The latest model, once a screening made one.
+    pub fn latest(&self) -> Option<&ModelSnapshot> {
+        self.latest.as_ref()
+    }
+
+    /// Whether the final model (the recording ended) has been sent.
+    pub fn finished(&self) -> bool {
+        self.finished
+    }
+
+    /// One pass of thread mode on a board: the bytes the UART's receive ring holds (up to
+    /// 64) go to [`Reporter::receive`], then [`Reporter::poll`]. Returns whether thread mode
+    /// may sleep (nothing was received); the board then checks, with interrupts off, that
+    /// no snapshot waits ([`Shared::screening_waiting`]) and the ring is still empty
+    /// before its `wfi`.
+    pub fn pass<L: Transport, K: Clock>(
+        &mut self,
+        rx: &mut Consumer<'_, u8>,
+        shared: &Shared<P>,
+        link: &mut L,
+        clock: &K,
+        screened: impl FnOnce(),
+    ) -> Result<bool, L::Error> {
+        let mut chunk = [0u8; 64];
+        let mut n = 0;
+        while n < chunk.len()
+            && let Some(b) = rx.dequeue()
+        {
+            if let Some(slot) = chunk.get_mut(n) {
+                *slot = b;
+            }
+            n += 1;
+        }
+        self.receive::<L, K>(chunk.get(..n).unwrap_or(&[]), shared, link)?;
+        self.poll(shared, link, clock, screened)?;
+        Ok(n == 0)
+    }
+
+    /// Screens a waiting snapshot (sending its model at once; its cost in `clock` ticks),
+    /// then sends Model and Health if a period has passed. `screened` is called after a
+    /// screening gave its snapshot back (the board pends the identify task, which may
+    /// be waiting to take the final one).
+    pub fn poll<L: Transport, K: Clock>(
+        &mut self,
+        shared: &Shared<P>,
+        link: &mut L,
+        clock: &K,
+        screened: impl FnOnce(),
+    ) -> Result<(), L::Error> {
+        self.watchdog = self.watchdog.wrapping_add(1);
+        if let Some((snapshot, cause)) = shared.take_full() {
+            let start = clock.now();
+            let made = snapshot.select();
+            let spent = clock.now().wrapping_sub(start);
+            self.screen_cost = spent;
+            self.screen_cost_max = self.screen_cost_max.max(spent);
+            if made && let Some(model) = snapshot.model() {
+                self.latest = wire::snapshot(model, cause).ok();
+            }
+            critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
+            screened();
+            if cause == SnapshotCause::Final {
+                self.send_model(link)?;
+                self.send_health::<L, K>(shared, link)?;
+                self.finished = true;
+                return Ok(());
+            }
+        }
+        let now = clock.now();
+        if self.period_ticks > 0 && now.wrapping_sub(self.last_report) >= self.period_ticks {
+            self.last_report = now;
+            self.send_model(link)?;
+            self.send_health::<L, K>(shared, link)?;
+        }
+        Ok(())
+    }
+
+    /// Handles bytes received from the host: `Hello`, `Configure` (checked here, applied
+    /// by the identify task before its next sample), `Query` (the latest model and
+    /// health), `Reset` (the configuration anew). A host's sample batch is refused with
+    /// `Busy`: this device samples its own sensor. Garbage is counted and skipped.
+    pub fn receive<L: Transport, K: Clock>(
+        &mut self,
+        bytes: &[u8],
+        shared: &Shared<P>,
+        link: &mut L,
+    ) -> Result<(), L::Error> {
+        for &byte in bytes {
+            match self.decoder.push::<HostMsg>(byte) {
+                None => {}
+                Some(Ok(message)) => {
+                    self.frames_ok = self.frames_ok.wrapping_add(1);
+                    self.command::<L, K>(message, shared, link)?;
+                }
+                Some(Err(lssi_proto::Error::Decode)) => {
+                    self.decode_errors = self.decode_errors.wrapping_add(1);
+                }
+                Some(Err(lssi_proto::Error::VersionMismatch { .. })) => {
+                    self.frames_ok = self.frames_ok.wrapping_add(1);
+                    self.send(link, &hello::<W, P>())?;
+                }
+                Some(Err(_)) => self.crc_errors = self.crc_errors.wrapping_add(1),
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs one decoded command and sends its reply.
+    fn command<L: Transport, K: Clock>(
+        &mut self,
+        message: HostMsg,
+        shared: &Shared<P>,
+        link: &mut L,
+    ) -> Result<(), L::Error> {
+        match message {
+            HostMsg::Hello { .. } => self.send(link, &hello::<W, P>()),
+            HostMsg::Configure(wire_config) => self.configure(wire_config, shared, link),
+            HostMsg::Reset => match self.config {
+                Some(config) => {
+                    shared.request_config(config);
+                    self.latest = None;
+                    self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
+                }
+                None => self.nak(link, CONTROL_SEQ, NakReason::NotConfigured),
+            },
+            HostMsg::Query => {
+                self.send_model(link)?;
+                self.send_health::<L, K>(shared, link)
+            }
+            // The instrument samples its own sensor: no host samples, no model in parts.
+            HostMsg::Samples(batch) => self.nak(link, batch.seq, NakReason::Busy),
+            HostMsg::Compact(batch) => self.nak(link, batch.seq, NakReason::Busy),
+            HostMsg::ModelPart { .. } => self.nak(link, CONTROL_SEQ, NakReason::Busy),
+        }
+    }
+
+    /// `Configure`: checked here, applied by the identify task before its next sample; kept
+    /// for the board to store once acked.
+    fn configure<L: Transport>(
+        &mut self,
+        wire_config: WireConfig,
+        shared: &Shared<P>,
+        link: &mut L,
+    ) -> Result<(), L::Error> {
+        let config = wire::config_from_wire(&wire_config);
+        match config.validate::<W, P, C>() {
+            Ok(()) => {
+                shared.request_config(config);
+                self.config = Some(config);
+                self.to_keep = Some(wire_config);
+                self.rate_hz = (1.0 / config.sample_period) as f32;
+                self.latest = None;
+                self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
+            }
+            Err(error) => self.nak(link, CONTROL_SEQ, wire::config_nak(&error)),
+        }
+    }
+
+    /// Sends `Nak { seq, reason }`.
+    fn nak<L: Transport>(
+        &mut self,
+        link: &mut L,
+        seq: u32,
+        reason: NakReason,
+    ) -> Result<(), L::Error> {
+        self.send(link, &DeviceMsg::Nak { seq, reason })
+    }
+
+    /// The health report now.
+    pub fn health<K: Clock>(&self, shared: &Shared<P>) -> DeviceMsg {
+        let s = shared.status();
+        let c = &shared.counters;
+        let ticks_to_ns = |ticks: u32| -> u32 {
+            let ns = u64::from(ticks) * 1_000_000_000 / u64::from(K::HZ.max(1));
+            u32::try_from(ns).unwrap_or(u32::MAX)
+        };
+        DeviceMsg::Health {
+            samples: s.samples,
+            rejected: s.rejected,
+            buffer_fill: s.buffer_fill,
+            cost_mean: s.cost_mean,
+            cost_max: s.cost_max,
+            cost_unit: CostUnit::Ticks,
+            watchdog: self.watchdog,
+            crc_errors: self.crc_errors,
+            frames_ok: self.frames_ok,
+            screen_cost: self.screen_cost,
+            screen_cost_max: self.screen_cost_max,
+            screenings: u32::try_from(s.screenings).unwrap_or(u32::MAX),
+            duplicates: 0,
+            decode_errors: self.decode_errors,
+            overruns: c.overruns.load(Ordering::Relaxed),
+            queue_high_water: u16::try_from(c.queue_high_water.load(Ordering::Relaxed))
+                .unwrap_or(u16::MAX),
+            latency_max_ns: ticks_to_ns(c.latency_max.load(Ordering::Relaxed)),
+            screenings_skipped: c.screenings_skipped.load(Ordering::Relaxed),
+            sample_rate_hz: self.rate_hz,
+        }
+    }
+
+    #[inline(never)]
+    fn send_model<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+        match self.latest.take() {
+            Some(model) => {
+                let message = DeviceMsg::Model(model);
+                let sent = self.send(link, &message);
+                if let DeviceMsg::Model(model) = message {
+                    self.latest = Some(model);
+                }
+                sent
+            }
+            None => Ok(()),
+        }
+    }
+
+    #[inline(never)]
+    fn send_health<L: Transport, K: Clock>(
+        &mut self,
+        shared: &Shared<P>,
+        link: &mut L,
+    ) -> Result<(), L::Error> {
+        let health = self.health::<K>(shared);
+        self.send(link, &health)
+    }
+
+    fn send<L: Transport>(&mut self, link: &mut L, message: &DeviceMsg) -> Result<(), L::Error> {
+        let Ok(len) = encode(message, &mut self.buffer) else {
+            return Ok(());
+        };
+        self.frames_sent = self.frames_sent.wrapping_add(1);
+        link.write(self.buffer.get(..len).unwrap_or(&[]))
+    }
+}
+
+fn hello<const W: usize, const P: usize>() -> DeviceMsg {
+    DeviceMsg::HelloReply {
+        protocol_version: PROTOCOL_VERSION,
+        max_terms: u8::try_from(P).unwrap_or(u8::MAX),
+        window_capacity: u16::try_from(W).unwrap_or(u16::MAX),
+        max_batch: u16::try_from(MAX_BATCH).unwrap_or(u16::MAX),
+    }
+}

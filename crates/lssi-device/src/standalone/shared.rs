@@ -1,0 +1,179 @@
+//! What the three contexts hand each other: the sample queue's events, the counters, the
+//! snapshot's two mailboxes and a configuration for the identify task.
+
+#[cfg(doc)]
+use super::STUCK_RUN;
+use core::cell::Cell;
+use core::sync::atomic::AtomicU32;
+use critical_section::Mutex;
+use heapless::spsc::Queue;
+use lssi_core::{Config, Snapshot};
+use lssi_proto::SnapshotCause;
+
+/// Slots of the sample queue: it holds `QUEUE_SLOTS − 1` = 64 events.
+pub const QUEUE_SLOTS: usize = 65;
+
+/// The queue between the sampling interrupt and the identify task.
+pub type EventQueue = Queue<Event, QUEUE_SLOTS>;
+
+/// One reading of the sensor's channels (v and u only when the configuration has them).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// Displacement.
+    pub x: f32,
+    /// Measured velocity.
+    pub v: Option<f32>,
+    /// Measured excitation.
+    pub u: Option<f32>,
+}
+
+/// What the sampling interrupt queues.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Event {
+    /// A sample: its index since sampling started, the clock at its interrupt, the reading.
+    Sample {
+        /// Samples taken before this one (overruns included: time stays the timer's).
+        index: u64,
+        /// [`Clock::now`] in the interrupt.
+        stamp: u32,
+        /// The reading.
+        reading: Reading,
+    },
+    /// The sensor has no more samples (the QEMU stand-in's recording ended).
+    End,
+}
+
+/// A free-running tick counter (wrapping), for latencies.
+pub trait Clock {
+    /// Ticks per second.
+    const HZ: u32;
+    /// The count now.
+    fn now(&self) -> u32;
+}
+
+/// Counters the three contexts share: atomics, written by one context each.
+#[derive(Debug)]
+pub struct Counters {
+    /// Samples the timer could not queue (queue full).
+    pub overruns: AtomicU32,
+    /// The most events the queue held.
+    pub queue_high_water: AtomicU32,
+    /// Worst clock ticks from a sample's interrupt to its row done.
+    pub latency_max: AtomicU32,
+    /// Samples the identify task took from the queue.
+    pub consumed: AtomicU32,
+    /// Scheduled screenings left out (the snapshot was still being screened).
+    pub screenings_skipped: AtomicU32,
+    /// Readings passed on as NaN because the sensor was stuck ([`STUCK_RUN`]); the
+    /// identifier counts them among its rejected samples too.
+    pub stuck: AtomicU32,
+}
+
+/// What the contexts hand each other: the counters, the snapshot's two mailboxes and a
+/// configuration for the identify task to apply. In a `static`.
+pub struct Shared<const P: usize> {
+    /// The counters.
+    pub counters: Counters,
+    /// The snapshot while nobody screens it (the identify task fills it from here).
+    pub(super) free: Mutex<Cell<Option<&'static mut Snapshot<f32, P>>>>,
+    /// The snapshot waiting for (or under) its screening, with why it was taken.
+    pub(super) full: Mutex<Cell<Option<Taken<P>>>>,
+    /// A configuration for the identify task to apply before its next sample.
+    pub(super) pending: Mutex<Cell<Option<Config>>>,
+    /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
+    pub(super) status: Mutex<Cell<Status>>,
+}
+
+/// A snapshot taken for a screening, with why it was taken.
+pub(super) type Taken<const P: usize> = (&'static mut Snapshot<f32, P>, SnapshotCause);
+
+/// The identifier's figures as the identify task last published them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Status {
+    /// Samples accepted.
+    pub samples: u64,
+    /// Samples rejected (non-finite, saturated, out of order).
+    pub rejected: u64,
+    /// Regression rows.
+    pub rows: u64,
+    /// Screenings scheduled (run on the snapshot or skipped).
+    pub screenings: u64,
+    /// Ring buffer fill.
+    pub buffer_fill: u16,
+    /// Mean clock ticks a sample's push took (its row, and at a screening point the
+    /// snapshot copy), over every sample since configured.
+    pub cost_mean: u32,
+    /// The most clock ticks one push took.
+    pub cost_max: u32,
+    /// The recording ended and its final snapshot was taken.
+    pub ended: bool,
+}
+
+impl<const P: usize> Shared<P> {
+    /// Empty: no snapshot yet (see [`Shared::give_snapshot`]).
+    pub const fn new() -> Self {
+        Self {
+            counters: Counters {
+                overruns: AtomicU32::new(0),
+                queue_high_water: AtomicU32::new(0),
+                latency_max: AtomicU32::new(0),
+                consumed: AtomicU32::new(0),
+                screenings_skipped: AtomicU32::new(0),
+                stuck: AtomicU32::new(0),
+            },
+            free: Mutex::new(Cell::new(None)),
+            full: Mutex::new(Cell::new(None)),
+            pending: Mutex::new(Cell::new(None)),
+            status: Mutex::new(Cell::new(Status {
+                samples: 0,
+                rejected: 0,
+                rows: 0,
+                screenings: 0,
+                buffer_fill: 0,
+                cost_mean: 0,
+                cost_max: 0,
+                ended: false,
+            })),
+        }
+    }
+
+    /// Hands over the one snapshot (at start-up, from a `static` the board owns).
+    pub fn give_snapshot(&self, snapshot: &'static mut Snapshot<f32, P>) {
+        critical_section::with(|cs| self.free.borrow(cs).set(Some(snapshot)));
+    }
+
+    /// Asks the identify task to configure the identifier anew before its next sample.
+    pub fn request_config(&self, config: Config) {
+        critical_section::with(|cs| self.pending.borrow(cs).set(Some(config)));
+    }
+
+    /// Whether a snapshot waits for its screening (thread mode has work: do not sleep).
+    pub fn screening_waiting(&self) -> bool {
+        critical_section::with(|cs| {
+            let full = self.full.borrow(cs);
+            let taken = full.take();
+            let waiting = taken.is_some();
+            full.set(taken);
+            waiting
+        })
+    }
+
+    /// The identify task's figures.
+    pub fn status(&self) -> Status {
+        critical_section::with(|cs| self.status.borrow(cs).get())
+    }
+
+    pub(super) fn take_free(&self) -> Option<&'static mut Snapshot<f32, P>> {
+        critical_section::with(|cs| self.free.borrow(cs).take())
+    }
+
+    pub(super) fn take_full(&self) -> Option<Taken<P>> {
+        critical_section::with(|cs| self.full.borrow(cs).take())
+    }
+}
+
+impl<const P: usize> Default for Shared<P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
