@@ -44,6 +44,14 @@ for image in bench-identifier bench-baseline bench-profile bench-weak; do
     cargo build --release --locked --quiet --features "$image"
     cp "$elf" "$work/$image.elf"
 done
+# The same configuration on a device built with 64-sample rings (`window-64`: a part with
+# 8-16 KiB of RAM), and the device image (lssi-device's command loop) both ways.
+cargo build --release --locked --quiet --features "bench-weak window-64"
+cp "$elf" "$work/bench-weak-64.elf"
+cargo build --release --locked --quiet --bin lssi-firmware
+cp "$elf" "$work/device.elf"
+cargo build --release --locked --quiet --bin lssi-firmware --features window-64
+cp "$elf" "$work/device-64.elf"
 
 run() { # run IMAGE: the image under QEMU, its defmt lines decoded into IMAGE.out
     local e="$work/$1.elf"
@@ -61,6 +69,7 @@ run() { # run IMAGE: the image under QEMU, its defmt lines decoded into IMAGE.ou
 run bench-identifier
 run bench-profile
 run bench-weak
+run bench-weak-64
 
 sizes() { # sizes IMAGE: "flash_code flash_total static_ram"
     "$llvm_size" -A "$work/$1.elf" | awk '
@@ -213,6 +222,21 @@ row "  mean without the screening" "$weak_steady" "" ""
 row "instructions/sample, worst outside screening" "$weak_steady_max" "" ""
 row "screening (threshold sweep + MES), mean / worst" "$weak_screen_mean / $weak_screen_max" "stated" ""
 
+# The window-64 build of the same: the model is the same (the window is 33 either way).
+w64="$work/bench-weak-64.out"
+read -r _ _ w64_ram < <(sizes bench-weak-64)
+w64_peak=$(max "$(max "$(value "$w64" push_stack)" "$(value "$w64" screen_stack)")" \
+    "$(max "$(value "$w64" configure_stack)" "$(value "$w64" reconfigure_stack)")")
+w64_total=$((w64_ram + w64_peak))
+w64_all=$(field "$w64" push_all mean)
+read -r _ dev_flash dev_ram < <(sizes device)
+read -r _ dev64_flash dev64_ram < <(sizes device-64)
+row "the same, built with window-64: static RAM" "$w64_ram B" "" "<= 8192 $(check "$w64_ram" 8192)"
+row "  static RAM + peak stack" "$w64_total B" "" "<= 12288 $(check "$w64_total" 12288)"
+row "  instructions/sample, mean" "$w64_all" "" ""
+row "device image (lssi-device loop): flash" "$dev_flash B" "<= 65536 $(check "$dev_flash" 65536)" "<= 32768 $(check "$dev_flash" 32768)"
+row "  static RAM: W = 256 / window-64" "$dev_ram / $dev64_ram B" "" "<= 8192 $(check "$dev64_ram" 8192)"
+
 # Energy: what a sample costs a part that runs the identifier and sleeps (WFI) in between.
 # Active energy per sample = V x (run current per MHz) x instructions, taking one cycle per
 # instruction (a floor: loads, branches and VDIV/VSQRT take more). Run currents are the
@@ -239,3 +263,8 @@ energy "as lssi identify configures (weak form)" "$weak_all"
 echo
 echo "Harvesters make 0.1-10 mW; the power is proportional to the rate (harvesters ring at 3-50 Hz)."
 echo "scripts/lowest-rate.sh: the lowest rate that still identifies data/eveh-bistable.csv within 1 %."
+
+echo
+echo "What the device image's flash holds (scripts/flash-breakdown.sh):"
+echo
+bash "$root/scripts/flash-breakdown.sh" "$work/device.elf" 15

@@ -15,8 +15,8 @@
 //! Between polls the loop drains the defmt logger's ring buffer ([`logger::take`]) into
 //! `DeviceMsg::Log` frames (`Device::send_log`), once the host has configured the device.
 
-use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Device};
-use lssi_firmware::CHANNELS;
+use lssi_device::{DEFAULT_TERMS, Device};
+use lssi_firmware::{CHANNELS, WINDOW};
 use lssi_firmware::cost::Meter;
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::uart::Uart0;
@@ -30,7 +30,7 @@ const LOG_CHUNK: usize = 96;
 /// [`TakeOnce`]): ring buffers for [`CHANNELS`] channels.
 #[allow(unsafe_code)]
 #[unsafe(link_section = ".bss.lssi.DEVICE")]
-static DEVICE: TakeOnce<Device<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>> =
+static DEVICE: TakeOnce<Device<WINDOW, DEFAULT_TERMS, CHANNELS>> =
     TakeOnce::new(Device::new());
 
 /// Runs the command loop forever.
@@ -41,7 +41,7 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
     };
     defmt::info!(
         "lssi device ready: window capacity {=usize}, {=usize} terms, {=usize} channels, costs in {=str}",
-        DEFAULT_WINDOW,
+        WINDOW,
         DEFAULT_TERMS,
         CHANNELS,
         lssi_firmware::cost::Meter::unit(meter).as_str()
@@ -86,7 +86,7 @@ pub fn run(uart: &mut Uart0, meter: &mut Meter) -> ! {
 /// Sends what the defmt logger's ring holds as `Log` frames. Its own frame, so that the
 /// chunk is not in the main loop's, under the screening.
 #[inline(never)]
-fn drain_log(device: &mut Device<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>, uart: &mut Uart0) {
+fn drain_log(device: &mut Device<WINDOW, DEFAULT_TERMS, CHANNELS>, uart: &mut Uart0) {
     let mut chunk = [0u8; LOG_CHUNK];
     loop {
         let n = logger::take(&mut chunk);

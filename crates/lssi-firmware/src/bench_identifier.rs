@@ -43,7 +43,7 @@ use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{platform, stack};
 
 /// Window capacity (samples).
-pub const WINDOW_CAPACITY: usize = 256;
+pub const WINDOW_CAPACITY: usize = lssi_firmware::WINDOW;
 /// Library capacity (terms).
 pub const TERMS: usize = 16;
 /// The identifier benchmarked: ring buffers for the firmware's [`CHANNELS`] (x and v).

@@ -18,6 +18,17 @@ pub const CHANNELS: usize = if cfg!(feature = "three-channels") {
     2
 };
 
+/// Ring-buffer capacity in samples (the `W` of the identifier): the longest derivative window
+/// the device accepts is one less. 256 by default; 64 with the `window-64` feature, for parts
+/// with 8–16 KiB of RAM (−4.6 KB of `.bss`: the rings and the folded taps). `lssi identify`
+/// chooses windows of 13–33 samples for the bundled recordings; a `Configure` with a longer
+/// window is refused (`BadConfig`, and `lssi replay` says the device's capacity).
+pub const WINDOW: usize = if cfg!(feature = "window-64") {
+    64
+} else {
+    lssi_device::DEFAULT_WINDOW
+};
+
 pub mod cost;
 pub mod logger;
 pub mod mps2;

@@ -27,13 +27,13 @@ use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Snapshot};
 use lssi_device::standalone::{Clock, Engine, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
-use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Transport, wire};
+use lssi_device::{DEFAULT_TERMS, Transport, wire};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
-use lssi_firmware::{CHANNELS, platform, uart};
+use lssi_firmware::{CHANNELS, WINDOW, platform, uart};
 use lssi_proto::{HostMsg, decode_frame};
 
-type Id = Engine<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>;
+type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
 
 /// Bytes the receive ring holds (one more slot than that).
 const RX_SLOTS: usize = 257;
@@ -59,7 +59,7 @@ struct Sensor {
 }
 
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: IdentifyTask<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS> = IdentifyTask::new();
+static IDENTIFY: IdentifyTask<WINDOW, DEFAULT_TERMS, CHANNELS> = IdentifyTask::new();
 static RX_IN: Mutex<RefCell<Option<Producer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 /// The TX interrupt found the ring empty: the next write must start it again.
@@ -155,7 +155,7 @@ fn main() -> ! {
         config.window,
         config.screening_period
     );
-    let mut reporter: Reporter<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS> =
+    let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS> =
         Reporter::new(config, rate as f32, BoardClock::HZ);
     let mut link = Link { tx: tx_in };
 
@@ -195,7 +195,7 @@ fn main() -> ! {
 }
 
 /// The recording is done: waits for the UART to send everything, logs the figures, exits.
-fn finish(reporter: &Reporter<DEFAULT_WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
+fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
     while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
         cortex_m::asm::wfi();
     }
