@@ -52,6 +52,8 @@ impl<T: Real> Smoothing<T> {
         let sparseness = (4 / u32::from(row_stride)).max(1);
         s.x.set_sparseness(sparseness);
         s.v.set_sparseness(sparseness);
+        // v evaluates ε(K) half an interval after x (the intervals are even multiples of 2).
+        s.v.set_phase(2 * sparseness);
         s
     }
 
