@@ -22,7 +22,9 @@
 //!
 //! A file that turns out to end within the excerpt is identified by
 //! [`crate::identify::identify_recording`] itself, so the result is the in-memory one.
-//! Not streamed: `--track` and `--refine` (they need the whole signal) and batches.
+//! Not streamed: `--track` and `--refine` (they need the whole signal) and batches. A streamed
+//! file is not refined on simulation error (the default for one file in memory): the output says
+//! so (a warning naming the file), and `--refine` reads it whole.
 
 use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
@@ -819,6 +821,7 @@ pub fn identify_command(
     columns: &ColumnNames,
     options: &Options,
     json: bool,
+    note: Option<&str>,
 ) -> Result<(), crate::error::CliError> {
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     use std::io::IsTerminal;
@@ -866,17 +869,16 @@ pub fn identify_command(
         STREAM_BYTES >> 20
     );
     eprintln!("lssi: warning: {gate}.");
+    if let Some(note) = note {
+        eprintln!("lssi: warning: {note}.");
+    }
     if json {
         let mut warnings = identify::batch::warnings(&report);
         warnings.push(gate);
-        let mut text = serde_json::to_string(&report).unwrap_or_default();
-        text.pop();
-        text.push_str(",\"warnings\":");
-        text.push_str(&serde_json::Value::from(warnings).to_string());
-        text.push('}');
-        crate::outln!("{text}");
+        warnings.extend(note.map(str::to_owned));
+        crate::outln!("{}", identify::json_text(&report, None, &warnings));
     } else {
-        crate::out!("{}", identify::render(&report));
+        crate::out!("{}", identify::render_reported(&report, None, note, "[x]"));
     }
     Ok(())
 }
