@@ -195,18 +195,21 @@ pub fn configure(
     };
     // The window from the data: the target comes from v when it is measured.
     // Blemished samples (non-finite, spikes, too early) are left out (`crate::identify::blemish`).
+    // A repaired spike counts with its repaired value.
     let scan = crate::identify::blemish::Scan::of(recording);
+    let kept_scan = scan.with_repairs_kept();
     let kept = |c: &[f64]| -> Vec<f64> {
         c.iter()
-            .zip(&scan.skip)
+            .zip(&kept_scan.skip)
             .filter(|(s, skip)| s.is_finite() && !**skip)
             .map(|(s, _)| *s)
             .collect()
     };
-    let (source, order): (Vec<f64>, usize) = match &recording.v {
-        Some(v) => (kept(v), 1),
-        None => (kept(&recording.x), 2),
-    };
+    let channel = usize::from(recording.v.is_some());
+    let source_values = scan
+        .repaired(recording, channel)
+        .unwrap_or_else(|| recording.x.clone());
+    let (source, order): (Vec<f64>, usize) = (kept(&source_values), 2 - channel);
     let memory_samples = options
         .memory
         .map_or(source.len(), |m| ((m / dt) as usize).min(source.len()));
@@ -296,12 +299,15 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     })
     .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let mut rows = Vec::new();
-    let x = &recording.x;
-    // Windows within clean, evenly sampled stretches only; each row's place on the time grid.
-    let clean = crate::identify::blemish::CleanWindows::new(
-        &crate::identify::blemish::Scan::of(recording),
-        n,
-    );
+    // Windows within clean, evenly sampled stretches only (a repaired spike with its repaired
+    // value); each row's place on the time grid.
+    let scan = crate::identify::blemish::Scan::of(recording);
+    let x_repaired = scan.repaired(recording, 0).unwrap_or_default();
+    let v_repaired = scan
+        .repaired(recording, 1)
+        .filter(|_| recording.v.is_some());
+    let x = &x_repaired;
+    let clean = crate::identify::blemish::CleanWindows::new(&scan.with_repairs_kept(), n);
     let mut places = Vec::new();
     let mut start = 0;
     while start + n <= x.len() {
@@ -310,7 +316,7 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
             continue;
         }
         let w = &x[start..start + n];
-        let (xh, vh, yh) = match &recording.v {
+        let (xh, vh, yh) = match &v_repaired {
             Some(v) => {
                 let vw = &v[start..start + n];
                 (
@@ -445,14 +451,17 @@ pub fn run<T: Real>(
             .map(|b| format!("{file}: {}", b.sentence())),
     );
     for (i, s) in recording.samples().enumerate() {
-        if scan.skip[i] {
-            continue;
-        }
+        // A repaired spike is given as the cubic through its neighbours (the window goes on).
+        let (x, v, u) = match scan.feed(i) {
+            crate::identify::blemish::Feed::Skip => continue,
+            crate::identify::blemish::Feed::AsIs => (s.x, s.v, s.u),
+            crate::identify::blemish::Feed::Repaired(r) => (r.x, r.v, r.u),
+        };
         let sample = Sample {
             t: s.t,
-            x: T::from_f64(s.x),
-            v: s.v.map(T::from_f64),
-            u: s.u.map(T::from_f64),
+            x: T::from_f64(x),
+            v: v.map(T::from_f64),
+            u: u.map(T::from_f64),
         };
         // A rejected sample is counted and reported; it never stops the run.
         if let Err(why) = identifier.push(sample) {
