@@ -442,12 +442,13 @@ pub fn where_text(rows: &[usize]) -> String {
     }
 }
 
-/// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
-/// so far and whose four neighbours are kept and evenly spaced.
-fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
+/// The cubic residual r of every usable sample of one channel, its median and its robust
+/// standard deviation (1.4826 · MAD); `None` on fewer than 16 usable samples.
+#[allow(clippy::type_complexity)]
+fn residuals(s: &[f64], scan: &Scan) -> Option<(Vec<Option<f64>>, f64, f64)> {
     let n = s.len();
     if n < 16 {
-        return Vec::new();
+        return None;
     }
     let usable = |i: usize| {
         i >= 2
@@ -469,11 +470,36 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
         .filter(|v| v.is_finite())
         .collect();
     if values.len() < 16 {
-        return Vec::new();
+        return None;
     }
     let centre = median(&mut values);
     let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
     let sigma = 1.4826 * median(&mut deviations);
+    Some((r, centre, sigma))
+}
+
+/// The spike rule's threshold on one channel, from a stretch of it: the centre of the cubic
+/// residual r and the limit |r − centre| beyond which a sample is a spike (with
+/// [`SPIKE_DOMINANCE`] over its neighbours). For a reader that sees the recording a sample at a
+/// time after this stretch (`crate::identify::stream`).
+pub fn spike_limit(s: &[f64], scan: &Scan) -> Option<(f64, f64)> {
+    let (_, centre, sigma) = residuals(s, scan)?;
+    let quantum = s
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let scale = sigma.max(if quantum.is_finite() { quantum } else { 0.0 });
+    (scale > 0.0).then_some((centre, SPIKE_MADS * scale))
+}
+
+/// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
+/// so far and whose four neighbours are kept and evenly spaced.
+fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
+    let n = s.len();
+    let Some((r, centre, sigma)) = residuals(s, scan) else {
+        return Vec::new();
+    };
     // The quantisation step: the smallest non-zero difference of consecutive samples.
     let quantum = s
         .windows(2)
