@@ -4,7 +4,7 @@
 #   2. the firmware's release ELF (crates/lssi-firmware, thumbv7em-none-eabihf);
 #   3. its smoke test under QEMU (crates/lssi-firmware/scripts/qemu-check.sh);
 #   4. the end-to-end tests: the bundled recording replayed through the firmware under QEMU
-#      must give the model of `lssi identify --f32` (tests/tests/qemu.rs), and the standalone
+#      must give the model of `lssi identify --f32 --no-refine` (tests/tests/qemu.rs), and the standalone
 #      image sampling a 10 kHz recording by its timer must lose no sample and end with that
 #      model (tests/tests/standalone_qemu.rs); ignored by a plain `cargo test`, run here with
 #      --include-ignored (a missing QEMU or ELF fails them);
@@ -38,7 +38,7 @@ ls -l "$elf"
 step "firmware smoke test under QEMU"
 crates/lssi-firmware/scripts/qemu-check.sh
 
-step "replay through the QEMU firmware == lssi identify --f32; the standalone instrument at 10 kHz"
+step "replay through the QEMU firmware == lssi identify --f32 --no-refine; the standalone instrument at 10 kHz"
 LSSI_FIRMWARE_ELF="$elf" \
     cargo test --workspace --locked --release --test qemu --test standalone_qemu -- --include-ignored --nocapture
 

@@ -28,11 +28,11 @@ for rows in "${sizes[@]}"; do
     "$lssi" gen eveh --rate 10000 --t-end "$t_end" "$f" >/dev/null
     size=$(stat -c %s "$f")
     if [ -x /usr/bin/time ]; then
-        /usr/bin/time -f "%e %U %S %M" -o "$work/time" "$lssi" identify "$f" --json >"$work/out.json"
+        /usr/bin/time -f "%e %U %S %M" -o "$work/time" "$lssi" identify "$f" --no-refine --json >"$work/out.json"
         read -r wall user sys rss <"$work/time"
     else
         start=$(date +%s.%N)
-        "$lssi" identify "$f" --json >"$work/out.json" &
+        "$lssi" identify "$f" --no-refine --json >"$work/out.json" &
         pid=$!
         rss=0
         while kill -0 "$pid" 2>/dev/null; do

@@ -3,7 +3,7 @@
 # x only, 0.5 % noise) is still within 1 % of the truth: the recording decimated by keeping
 # every d-th sample (as a device sampling d times slower would see it, no anti-alias filter:
 # the harvester's motion is band-limited to a few harmonics of its 3.4 Hz forcing), then
-# `lssi identify --family odd` in f32, as the device computes.
+# `lssi identify --family odd --no-refine` in f32, as the device computes (the streaming model).
 #
 #   scripts/lowest-rate.sh          # about 10 s after the release build
 #
@@ -20,7 +20,7 @@ echo "|---:|---:|---:|---:|---:|---|"
 for d in 1 2 4 5 8 10 16 20 25 40; do
     f="$work/d$d.csv"
     awk -v d="$d" 'NR == 1 || (NR - 2) % d == 0' data/eveh-bistable.csv >"$f"
-    if ! target/release/lssi identify "$f" --family odd --json >"$work/d$d.json" 2>"$work/d$d.err"; then
+    if ! target/release/lssi identify "$f" --family odd --no-refine --json >"$work/d$d.json" 2>"$work/d$d.err"; then
         echo "| $((2000 / d)) | | no model: $(head -c 120 "$work/d$d.err" | tr '\n' ' ') | | | no |"
         continue
     fi

@@ -21,7 +21,8 @@ PySINDy, two ways:
 Scores (as `lssi bench accuracy`): per true term |error| / |true| in %, 100 for a missed term;
 mean and max over the true terms; spurious = active terms not in the truth.
 Wall time: one command on one recording, start-up included, median of 3 (PySINDy: a fresh
-Python process that imports pysindy, reads the CSV and fits; lssi: `lssi identify --json`);
+Python process that imports pysindy, reads the CSV and fits; lssi: `lssi identify --json
+--no-refine`, the streaming identifier's model, as a device computes it);
 the CPU time of that process beside it (a shared machine inflates wall times, not CPU times).
 Throughput without start-up on 10^6 samples: PySINDy's default `fit` call alone; lssi's
 streaming identifier as `lssi bench accuracy --quick` reports it.
@@ -327,8 +328,8 @@ def compare(args):
         for name, cmd in [
             ("PySINDy default", [python, me, "_fit", "default", path] + lib),
             ("PySINDy CV", [python, me, "_fit", "cv", path] + lib),
-            ("lssi f32", [lssi, "identify", path, "--json"] + lib),
-            ("lssi f64", [lssi, "identify", path, "--json", "--f64"] + lib),
+            ("lssi f32", [lssi, "identify", path, "--json", "--no-refine"] + lib),
+            ("lssi f64", [lssi, "identify", path, "--json", "--f64", "--no-refine"] + lib),
         ]:
             repeats = 1 if name == "PySINDy CV" else args.repeats
             wall, cpu, out = timed(cmd, repeats)
@@ -365,7 +366,7 @@ def compare(args):
     py = json.loads(out)
     py_rate = py["samples"] / py["seconds"]
     rs_rate = lssi_throughput(lssi)
-    wall_big, _, _ = timed([lssi, "identify", big, "--json", "--omega", "1", "--harmonics", "3", "--poly-order", "3"], 1)
+    wall_big, _, _ = timed([lssi, "identify", big, "--json", "--no-refine", "--omega", "1", "--harmonics", "3", "--poly-order", "3"], 1)
     print()
     print(
         f"Fit throughput on 10^6 samples of eq. 17 (δ = 0.01), without start-up, one core: "

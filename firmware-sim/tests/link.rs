@@ -140,7 +140,7 @@ fn batches(samples: &[(f64, f32)]) -> Vec<SampleBatch> {
         .collect()
 }
 
-/// What `lssi identify --f32` computes for the same samples and configuration.
+/// What `lssi identify --f32 --no-refine` computes for the same samples and configuration.
 fn direct(samples: &[(f64, f32)]) -> ModelSnapshot {
     let mut id: Identifier<f32, DEFAULT_WINDOW, DEFAULT_TERMS> =
         Identifier::new(config()).expect("valid");

@@ -1,4 +1,6 @@
-//! `lssi identify FILE...` (many recordings in parallel) and `lssi identify --refine`.
+//! `lssi identify FILE...` (many recordings in parallel: the quality gate per file, the
+//! streaming model unless `--refine`) and the refinement on simulation error that `lssi
+//! identify FILE` runs by default (`--no-refine` skips it).
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::path::Path;
@@ -45,17 +47,18 @@ fn many_recordings_give_one_line_each_in_order_with_errors_in_their_rows() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
         assert_eq!(v["file"], file.as_str());
     }
-    // Each good line is the single-file output (which ends with its "warnings") with
-    // "file" in front.
+    // Each good line is the single-file output without refinement (which ends with its
+    // "warnings") with "file" in front, and the warning that it was not refined.
     for (line, file) in [(lines[0], &a), (lines[2], &b)] {
-        let single = lssi(&["identify", file, "--json", "--family", "odd"]);
+        let single = lssi(&["identify", file, "--json", "--family", "odd", "--no-refine"]);
         let single = String::from_utf8(single.stdout).unwrap();
         let single = single.trim();
         assert!(single.ends_with(",\"warnings\":[]}"), "{single}");
         let expected = format!(
-            "{{\"file\":{},{}}}",
+            "{{\"file\":{},{}\"{}\"]}}",
             serde_json::Value::from(file.as_str()),
-            &single[1..single.len() - 1]
+            &single[1..single.len() - 2],
+            lssi_host::identify::batch::NOT_REFINED
         );
         assert_eq!(line, expected);
     }
@@ -75,10 +78,69 @@ fn many_recordings_give_one_line_each_in_order_with_errors_in_their_rows() {
 }
 
 #[test]
-fn refine_reports_the_refined_model_with_standard_errors_and_its_fit() {
+fn a_batch_withholds_a_model_that_fails_the_gate_and_names_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", &["--seed", "1"]);
+    // White noise (a 64-bit LCG through Box–Muller): no deterministic dynamics.
+    let noise = dir.path().join("noise.csv");
+    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut text = String::from("t,x\n");
+    for i in 0..20_000 {
+        let (p, q) = (uniform(), uniform());
+        let g = (-2.0 * p.ln()).sqrt() * (2.0 * std::f64::consts::PI * q).cos();
+        text.push_str(&format!("{},{:e}\n", i as f64 * 0.0005, 1e-3 * g));
+    }
+    std::fs::write(&noise, text).unwrap();
+    let out = lssi(&["identify", &a, arg(&noise), "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(
+        stderr.contains("no deterministic dynamics found in 1 of 2 recordings")
+            && stderr.contains("noise.csv")
+            && !stderr.contains("a.csv"),
+        "{stderr}"
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2);
+    assert!(lines[0]["terms"].is_array(), "{}", lines[0]);
+    assert_eq!(lines[1]["withheld"], true, "{}", lines[1]);
+    assert!(lines[1].get("terms").is_none(), "{}", lines[1]);
+    assert!(
+        lines[1]["error"]
+            .as_str()
+            .unwrap()
+            .starts_with("no deterministic dynamics found in"),
+        "{}",
+        lines[1]
+    );
+    assert!(!lines[1]["warnings"].as_array().unwrap().is_empty());
+    // The table and the text say it too, with the same exit status.
+    for format in ["--csv", "--f32"] {
+        let out = lssi(&["identify", &a, arg(&noise), format]);
+        assert_eq!(out.status.code(), Some(3));
+        let stdout = String::from_utf8(out.stdout).unwrap();
+        assert!(
+            stdout.contains("no deterministic dynamics found in"),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
+fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     let dir = tempfile::tempdir().unwrap();
     let a = generate(dir.path(), "a.csv", &["--seed", "3", "--delta", "0.02"]);
-    let out = lssi(&["identify", &a, "--family", "odd", "--refine", "--json"]);
+    let out = lssi(&["identify", &a, "--family", "odd", "--json"]);
     assert!(
         out.status.success(),
         "{}",
@@ -87,8 +149,11 @@ fn refine_reports_the_refined_model_with_standard_errors_and_its_fit() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let refined = &v["refined"];
     assert_eq!(refined["chosen"], "refined", "{refined}");
-    let terms = refined["terms"].as_array().unwrap();
+    assert_eq!(v["model"], "refined", "{v}");
+    // "terms" is the refined model, with a standard error on every term.
+    let terms = v["terms"].as_array().unwrap();
     assert_eq!(terms.len(), 4);
+    assert_eq!(&v["terms"], &refined["terms"]);
     for t in terms {
         assert!(t["se"].as_f64().unwrap() > 0.0);
     }
@@ -96,15 +161,61 @@ fn refine_reports_the_refined_model_with_standard_errors_and_its_fit() {
         refined["free_run"]["nrmse_percent"].as_f64().unwrap() < 10.0,
         "{refined}"
     );
-    // The streaming model above stays the device's: the same as without --refine.
-    let plain = lssi(&["identify", &a, "--family", "odd", "--json"]);
+    // "streaming_terms" is the device's model: "terms" of --no-refine, without errors.
+    let plain = lssi(&["identify", &a, "--family", "odd", "--json", "--no-refine"]);
     let plain: serde_json::Value = serde_json::from_slice(&plain.stdout).unwrap();
-    assert_eq!(plain["terms"], v["terms"]);
-    let text = lssi(&["identify", &a, "--family", "odd", "--refine", "--unit", "m"]);
+    assert_eq!(plain["model"], "streaming");
+    assert_eq!(plain["terms"], v["streaming_terms"]);
+    assert_eq!(plain["terms"], plain["streaming_terms"]);
+    assert!(plain.get("refined").is_none());
+    assert!(plain["terms"][0].get("se").is_none());
+    assert_ne!(plain["terms"], v["terms"]);
+    // Both models are close to the truth (eq. 19 of the paper: ξ_x = −336.55 ... ).
+    let coef = |doc: &serde_json::Value, key: &str, name: &str| {
+        doc[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["term"] == name)
+            .and_then(|t| t["coef"].as_f64())
+            .unwrap()
+    };
+    for name in ["x", "v", "x^3"] {
+        let (r, s) = (coef(&v, "terms", name), coef(&v, "streaming_terms", name));
+        assert!((r / s - 1.0).abs() < 0.05, "{name}: {r} vs {s}");
+    }
+    // --refine (which scripts passed before it was the default) is accepted and changes
+    // nothing; it and --no-refine together are refused.
+    let again = lssi(&["identify", &a, "--family", "odd", "--json", "--refine"]);
+    assert_eq!(again.stdout, out.stdout);
+    let both = lssi(&["identify", &a, "--refine", "--no-refine"]);
+    assert_eq!(both.status.code(), Some(2));
+    // The text says which model it shows, and gives the streaming one too.
+    let text = lssi(&["identify", &a, "--family", "odd", "--unit", "m"]);
     let text = String::from_utf8(text.stdout).unwrap();
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().starts_with("x'' = ("), "{text}");
+    assert_eq!(
+        lines.next().unwrap(),
+        "model: refined on simulation error (host only)"
+    );
     assert!(
-        text.contains("refined on simulation error: x'' = ("),
+        text.contains("streaming model (as a device computes it): x'' = "),
         "{text}"
     );
     assert!(text.contains(" m\n"), "{text}");
+    let text = lssi(&["identify", &a, "--family", "odd", "--no-refine"]);
+    let text = String::from_utf8(text.stdout).unwrap();
+    assert!(
+        text.contains("model: the streaming identifier's (as a device computes it)\n  not refined (--no-refine)\n"),
+        "{text}"
+    );
+    // Several recordings: the streaming model, unless --refine asks for refinement, which
+    // then gives each file's single-recording model.
+    let batch = lssi(&["identify", &a, &a, "--family", "odd", "--json", "--refine"]);
+    assert!(batch.status.success());
+    let stdout = String::from_utf8(batch.stdout).unwrap();
+    let line: serde_json::Value = serde_json::from_str(stdout.lines().next().unwrap()).unwrap();
+    assert_eq!(line["terms"], v["terms"]);
+    assert_eq!(line["model"], "refined");
 }

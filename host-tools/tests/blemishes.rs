@@ -51,6 +51,8 @@ fn identify(path: &Path) -> Output {
         .arg("identify")
         .arg(path)
         .arg("--json")
+        // The streaming identifier's blemish handling (refinement has its own tests).
+        .arg("--no-refine")
         .output()
         .unwrap()
 }
@@ -90,14 +92,23 @@ fn errors(clean: &BTreeMap<String, f64>, other: &BTreeMap<String, f64>) -> BTree
         .collect()
 }
 
-/// The bound, 2 %, on every coefficient but the damping `v`, and on `v` 3 %: the
-/// damping is the weakest term of this model (ζ = 0.011), and one restart of the window
-/// (which leaves a hole in the test-function sums around it) moves it by up to 2.7 % at the
-/// ten spike positions measured (0.0–0.8 % at most of them).
+/// The bound, 2 %, on every coefficient. The damping `v` is the weakest term of this
+/// model (ζ = 0.011) and the one a blemish moves: a sample left out restarts the derivative
+/// window, which leaves a hole in the test-function sums around it (measured with the streaming
+/// model: two NaN rows 1.66 %, the 0.1 s gap 0.75 %; an isolated spike left out moved it by up
+/// to 2.12 %, which is why a spike is now repaired instead: ≤ 0.03 % at the three places below).
 fn assert_close(clean: &BTreeMap<String, f64>, other: &BTreeMap<String, f64>, what: &str) {
+    assert_within(clean, other, what, 0.02);
+}
+
+fn assert_within(
+    clean: &BTreeMap<String, f64>,
+    other: &BTreeMap<String, f64>,
+    what: &str,
+    bound: f64,
+) {
     for (term, e) in errors(clean, other) {
-        let bound = if term == "v" { 0.03 } else { 0.02 };
-        assert!(e <= bound, "{what}: {term} off by {:.2} %", 100.0 * e);
+        assert!(e <= bound, "{what}: {term} off by {:.3} %", 100.0 * e);
     }
 }
 
@@ -154,11 +165,15 @@ fn blemished_copies_give_the_clean_model_and_name_the_blemish() {
         let mut spike = rows.clone();
         with_x(&mut spike, at, "1e300");
         let (m, json) = model(&identify(&write(dir.path(), "spike.csv", &header, &spike)));
-        assert_close(&clean, &m, &format!("a spike at row {at}"));
+        // Repaired by the cubic through its neighbours: the window goes on, the model is
+        // the clean one to a fraction of the 2 %.
+        assert_within(&clean, &m, &format!("a spike at row {at}"), 0.001);
         assert_eq!(json["rejected"], 1);
         let w = warnings(&json).join("\n");
         assert!(
-            w.contains(&format!("data row {}", at + 1)) && w.contains("spike"),
+            w.contains(&format!("data row {}", at + 1))
+                && w.contains("spike")
+                && w.contains("replaced by the cubic"),
             "{w}"
         );
     }
@@ -221,4 +236,14 @@ fn the_spike_rule_finds_spikes_only() {
     let found: Vec<(Kind, usize)> = scan.blemishes.iter().map(|b| (b.kind, b.index)).collect();
     assert_eq!(found, vec![(Kind::Spike, 9_000)]);
     assert!(scan.skip[9_000] && scan.restart[9_001]);
+    // Repaired: x there as the cubic through its four neighbours, within the noise of the
+    // sample it replaces.
+    let repaired = scan.repairs[&9_000].x;
+    let expected = (-r.x[8_998] + 4.0 * r.x[8_999] + 4.0 * r.x[9_001] - r.x[9_002]) / 6.0;
+    assert!((repaired - expected).abs() <= 1e-12 * expected.abs().max(1e-300));
+    let original = r.x[9_000] - 2.0 * rms;
+    assert!(
+        (repaired - original).abs() < 0.25 * rms,
+        "{repaired} for {original}"
+    );
 }

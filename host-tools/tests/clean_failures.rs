@@ -17,7 +17,7 @@ fn a_full_standard_output_exits_1_with_one_line() {
         return;
     };
     for args in [
-        vec!["identify", "data/eveh-bistable.csv"],
+        vec!["identify", "data/eveh-bistable.csv", "--no-refine"],
         vec!["identify", "data/eveh-bistable.csv", "--json"],
         vec!["info", "data/eveh-bistable.csv"],
     ] {
@@ -70,6 +70,7 @@ fn omega_above_nyquist_is_refused() {
             &repository_file("data/eveh-bistable.csv"),
             "--omega",
             "21.4",
+            "--no-refine",
         ])
         .output()
         .unwrap();

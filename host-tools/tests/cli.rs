@@ -131,7 +131,14 @@ fn rejected_samples_are_named_on_stderr_and_the_rest_identifies() {
         lines[row] = fields.join(",");
     }
     std::fs::write(&path, lines.join("\n") + "\n").unwrap();
-    let out = lssi(&["identify", arg(&path), "--omega", "2", "--json"]);
+    let out = lssi(&[
+        "identify",
+        arg(&path),
+        "--omega",
+        "2",
+        "--json",
+        "--no-refine",
+    ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let stderr = text(&out.stderr);
     let warnings: Vec<&str> = stderr.lines().collect();

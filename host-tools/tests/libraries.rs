@@ -27,6 +27,7 @@ fn identify(path: &Path, flags: &[&str]) -> Output {
         .arg("identify")
         .arg(path)
         .arg("--json")
+        .arg("--no-refine")
         .args(flags)
         .output()
         .unwrap()

@@ -1,4 +1,4 @@
-//! `lssi replay` as a person runs it: the same JSON as `lssi identify --f32 --json` plus
+//! `lssi replay` as a person runs it: the same JSON as `lssi identify --f32 --no-refine --json` plus
 //! `"link"`; a simulator killed mid-replay gives one sentence naming the port and leaves a
 //! readable log; bad flags and missing devices are one sentence each.
 //!
@@ -42,7 +42,7 @@ fn replay_json_is_identify_json_plus_the_link() {
     std::fs::copy(bundled(), &file).unwrap();
     let file = file.to_str().unwrap();
 
-    let identify = lssi(&["identify", "--f32", "--json", file]);
+    let identify = lssi(&["identify", "--f32", "--no-refine", "--json", file]);
     assert!(identify.status.success());
     let mut identify: serde_json::Value = serde_json::from_slice(&identify.stdout).unwrap();
     // identify's last key, "warnings" (left-out samples, the quality gate), is not replay's.

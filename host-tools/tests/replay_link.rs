@@ -1,6 +1,6 @@
 //! The link client against the real device code (`lssi_device::Device`) in this process,
 //! over a socket pair with faults injected on the way to the device: the bundled recording
-//! replayed over the link gives exactly `lssi identify --f32`'s report, whatever the faults,
+//! replayed over the link gives exactly `lssi identify --f32 --no-refine`'s report, whatever the faults,
 //! and a device that goes away gives an error naming the port with the log intact.
 //!
 //! firmware-sim does the same over a pty in `tests/tests/replay.rs` and `replay_cli.rs`; here

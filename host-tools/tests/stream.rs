@@ -235,3 +235,126 @@ proptest! {
         let _ = describe_file(&path, &columns);
     }
 }
+
+/// The shipped bistable recording with `x` of the given rows replaced.
+fn blemished_copy(dir: &Path, name: &str, rows: &[(usize, &str)]) -> PathBuf {
+    let text = std::fs::read_to_string(data("eveh-bistable.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    for &(row, value) in rows {
+        // Data row `row` is line `row` (line 0 is the header); columns t,x.
+        let t = lines[row].split(',').next().unwrap().to_owned();
+        lines[row] = format!("{t},{value}");
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    path
+}
+
+fn small_stream() -> StreamOptions {
+    // A small excerpt, so the shipped 40,001-row recording is streamed (the default streams
+    // files over 8 MiB only).
+    StreamOptions {
+        excerpt_rows: 1 << 13,
+        probe_rows: 1 << 11,
+    }
+}
+
+/// Issue 16 leftover (b): a streamed file gets the in-memory path's blemish handling: a spike
+/// in the excerpt and spikes in the streamed part are repaired and named, and the model is
+/// the clean file's streamed model within the issue's 2 % (measured: v 0.023 %, the others
+/// under 0.001 %).
+#[test]
+fn a_streamed_file_has_its_spikes_repaired_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let columns = ColumnNames::default();
+    let options = Options::default();
+    let (clean, clean_summary) = identify_file(
+        data("eveh-bistable.csv"),
+        &columns,
+        &options,
+        &small_stream(),
+        |_, _| {},
+    )
+    .unwrap();
+    assert!(clean_summary.streamed);
+    assert!(
+        clean_summary.quality.passed(),
+        "{:?}",
+        clean_summary.quality
+    );
+    assert_eq!(clean.rejected, 0);
+    let spiked = blemished_copy(
+        dir.path(),
+        "spiked.csv",
+        &[(3_001, "1e300"), (15_001, "1e300"), (30_001, "-0.5")],
+    );
+    let (report, summary) =
+        identify_file(&spiked, &columns, &options, &small_stream(), |_, _| {}).unwrap();
+    assert!(summary.streamed && summary.quality.passed());
+    assert_eq!(report.rejected, 3, "{:?}", report.rejections);
+    for row in [3_001, 15_001, 30_001] {
+        assert!(
+            report
+                .rejections
+                .iter()
+                .any(|w| w.contains(&format!("data row {row} ")) && w.contains("spike")),
+            "row {row}: {:?}",
+            report.rejections
+        );
+    }
+    let names = |r: &lssi_host::identify::Report| {
+        r.terms.iter().map(|t| t.term.clone()).collect::<Vec<_>>()
+    };
+    assert_eq!(names(&report), names(&clean));
+    for (got, want) in report.terms.iter().zip(&clean.terms) {
+        let e = (got.coef / want.coef - 1.0).abs();
+        println!(
+            "{}: {:.4} % off the clean streamed model",
+            got.term,
+            100.0 * e
+        );
+        assert!(e <= 0.02, "{}: {:.3} % off", got.term, 100.0 * e);
+    }
+}
+
+/// Issue 16 leftover (b): the quality gate runs on a streamed file (on its excerpt): white
+/// noise gets no model.
+#[test]
+fn a_streamed_noise_file_fails_the_quality_gate() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("noise.csv");
+    let mut state = 0x2545_F491_4F6C_DD1D_u64;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut text = String::from("t,x\n");
+    for i in 0..40_000 {
+        let (p, q) = (uniform(), uniform());
+        let g = (-2.0 * p.ln()).sqrt() * (2.0 * std::f64::consts::PI * q).cos();
+        text.push_str(&format!("{},{:e}\n", i as f64 * 0.0005, 1e-3 * g));
+    }
+    std::fs::write(&path, text).unwrap();
+    // An excerpt of 2^15 rows (16 s) of the 40,000: on 2^13 rows (4 s) this noise passes the
+    // gate in memory too (the held-out check needs a longer record), and the default
+    // excerpt is 2^16 rows.
+    let stream = StreamOptions {
+        excerpt_rows: 1 << 15,
+        probe_rows: 1 << 11,
+    };
+    let result = identify_file(
+        &path,
+        &ColumnNames::default(),
+        &Options::default(),
+        &stream,
+        |_, _| {},
+    );
+    // Either the identifier itself refuses (no spectral peak, …) or the gate withholds it.
+    if let Ok((_, summary)) = result {
+        assert!(summary.streamed);
+        assert!(!summary.quality.passed(), "white noise passed the gate");
+        assert_eq!(summary.gated_rows, 1 << 15);
+    }
+}

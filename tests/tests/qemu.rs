@@ -1,5 +1,5 @@
 //! The bundled recording through the Cortex-M4F firmware under QEMU: the model the device
-//! reports must equal, bit for bit, the model `lssi identify --f32` computes on the host.
+//! reports must equal, bit for bit, the model `lssi identify --f32 --no-refine` computes on the host.
 //!
 //! The test builds nothing: it runs the release ELF of `crates/lssi-firmware` (built by
 //! `scripts/ci-qemu.sh`, or `cd crates/lssi-firmware && cargo build --release`), or the one
@@ -205,7 +205,7 @@ impl Link {
 }
 
 fn host_model(recording: &Recording, config: lssi_core::Config) -> Model<f32, TERM_CAPACITY> {
-    // What `lssi identify --f32` runs (host-tools' identify::run), up to its report.
+    // What `lssi identify --f32 --no-refine` runs (host-tools' identify::run), up to its report.
     let mut id: Identifier<f32, WINDOW_CAPACITY, TERM_CAPACITY> =
         Identifier::new(config).expect("the host's configuration builds");
     for s in recording.samples() {
@@ -384,7 +384,7 @@ fn bundled_recording_through_qemu_firmware_equals_host_f32() {
 
 /// The user's command: `lssi replay data/paper-eq17.csv --qemu --json` (its code, in this
 /// process: QEMU on a pty, the link through `serialport`, defmt decoded) reports exactly the
-/// report of `lssi identify --f32` on the same file.
+/// report of `lssi identify --f32 --no-refine` on the same file.
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware ELF: bash scripts/ci-qemu.sh runs it"]
 fn lssi_replay_qemu_reports_what_identify_f32_reports() {

@@ -1,6 +1,6 @@
 //! Host == device over the serial link: the bundled recording replayed through firmware-sim
 //! on a pty (`lssi replay`'s code, in this process) reports exactly the model of
-//! `lssi identify --f32`, on a clean line and on one with bit flips, dropped bytes and bursts,
+//! `lssi identify --f32 --no-refine`, on a clean line and on one with bit flips, dropped bytes and bursts,
 //! and no sample is lost.
 //!
 //! firmware-sim is the workspace's binary: `cargo test --workspace` builds it into the same
@@ -40,7 +40,7 @@ fn replay_over_firmware_sim_reports_what_identify_f32_reports() {
     let log = dir.path().join("clean.tlm");
     let recording = Recording::read(bundled(), &ColumnNames::default()).unwrap();
     let clean = args(&bundled(), &log, 4_000_000);
-    // `lssi identify --f32` with the same flags.
+    // `lssi identify --f32 --no-refine` with the same flags.
     let expected = identify_recording(&recording, &clean.options().unwrap()).unwrap();
 
     let report = replay(&clean).unwrap();

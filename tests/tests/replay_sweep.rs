@@ -2,7 +2,7 @@
 //! data/eveh-bistable.csv --encoding i16` through firmware-sim on a pty at 921,600 baud, over
 //! a seeded sweep of bit-flip and byte-drop rates from 0 to 1 % (both directions) and batch
 //! lengths from 8 to 64. Every run must apply every sample exactly once (`samples_lost == 0`,
-//! all 40,001 acknowledged) and report exactly the model `lssi identify --quantise i16`
+//! all 40,001 acknowledged) and report exactly the model `lssi identify --quantise i16 --no-refine`
 //! reports: the identifier run in this process on the recording as the device received it
 //! (times on the grid, values rounded to i16 quanta).
 //!
@@ -51,7 +51,7 @@ fn every_run_of_the_fault_sweep_gives_the_quantised_identify_model_and_loses_not
         json: true,
         ..ReplayArgs::for_file(&file).unwrap()
     };
-    // `lssi identify --quantise i16` with the same flags.
+    // `lssi identify --quantise i16 --no-refine` with the same flags.
     let expected = identify_recording(&quantised.recording, &base.options().unwrap()).unwrap();
 
     let runs: Vec<_> = SWEEP
@@ -106,7 +106,7 @@ fn every_run_of_the_fault_sweep_gives_the_quantised_identify_model_and_loses_not
 
 #[test]
 fn the_quantised_model_is_not_the_f32_model_so_the_comparison_can_fail() {
-    // The sweep's expectation differs from `lssi identify --f32` on the raw recording: the
+    // The sweep's expectation differs from `lssi identify --f32 --no-refine` on the raw recording: the
     // quantisation changes the coefficients' last bits, so a replay that sent unquantised
     // values (or quantised differently) would not pass.
     let file = bistable();

@@ -3,7 +3,7 @@
 //! from its PSRAM by its timer, identifies on its own and reports by itself.
 //!
 //! What `lssi monitor --qemu FILE.csv --json` does, called in this process: no sample may be
-//! lost (0 overruns), and the final model must equal `lssi identify --f32`'s on the same
+//! lost (0 overruns), and the final model must equal `lssi identify --f32 --no-refine`'s on the same
 //! file (same terms; coefficients within 10⁻⁵ relative; in practice bit for bit).
 //!
 //! `#[ignore]`d with the reason `cargo test` shows: it needs `qemu-system-arm` and the

@@ -67,9 +67,13 @@ pub struct IdentifyArgs {
     /// the device protocol does not carry it)
     #[arg(long, help_heading = "Identifier")]
     pub noise_correction: bool,
-    /// Also refine the selected terms' coefficients on simulation error (f64, host only):
-    /// reports the refined model with standard errors, its held-out fit and the free run's
-    /// NRMSE (`"refined"` in --json); the streaming model above stays the device's.
+    /// Skip the refinement on simulation error: report the streaming identifier's model (the
+    /// one a device computes for the same samples), in a fraction of the time.
+    #[arg(long, conflicts_with = "refine", help_heading = "Identifier")]
+    pub no_refine: bool,
+    /// Refine even where the default does not: a file over 8 MiB is then read whole instead
+    /// of streamed, and several recordings are each refined. (Refinement is on by default for
+    /// one recording; this flag was needed before, and is accepted.)
     #[arg(long, help_heading = "Identifier")]
     pub refine: bool,
     /// Print one JSON object instead of text (with --track: JSON lines instead of CSV).
@@ -88,7 +92,7 @@ pub struct IdentifyArgs {
     )]
     pub unit: String,
     /// Print the coefficients over time (one row per screening) and the settle time after a
-    /// change, instead of the final model.
+    /// change, instead of the final model (the streaming identifier's models: not refined).
     #[arg(long, help_heading = "Output")]
     pub track: bool,
     /// With --track: seconds between two screenings.
@@ -191,13 +195,27 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);
     }
-    // Large files: read in chunks, configured from an excerpt (see identify::stream).
+    // Large files: read in chunks, configured from an excerpt (see identify::stream); not
+    // refined unless --refine asks for it (refinement needs the whole signal in memory).
     if !args.track
         && !args.refine
         && args.quantise.is_none()
         && identify::stream::is_large(&args.file)
     {
-        return identify::stream::identify_command(&args.file, &args.columns, &options, args.json);
+        let note = (!args.no_refine).then(|| {
+            format!(
+                "{}: not refined: the file is over {} MiB and was read in chunks; this is the streaming identifier's model (--refine reads it whole and refines)",
+                args.file.display(),
+                identify::stream::STREAM_BYTES >> 20
+            )
+        });
+        return identify::stream::identify_command(
+            &args.file,
+            &args.columns,
+            &options,
+            args.json,
+            note.as_deref(),
+        );
     }
     let mut recording = Recording::read(&args.file, &args.columns)?;
     if args.quantise == Some(Quantise::I16) {
@@ -208,7 +226,7 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if args.track {
         return run_track(args, &recording, &options);
     }
-    let (report, quality) = identify::quality::identify_checked(&recording, &options)?;
+    let (mut report, quality) = identify::quality::identify_checked(&recording, &options)?;
     // Each rejected sample, on stderr: the first few named, then how many more.
     const NAMED: usize = 5;
     for warning in report.rejections.iter().take(NAMED) {
@@ -226,49 +244,31 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     warnings.extend(quality.failures.iter().cloned());
     if !quality.passed() {
         if args.json {
-            let mut text = serde_json::to_string(&report).unwrap_or_default();
-            text.pop();
-            text.push_str(",\"warnings\":");
-            text.push_str(&serde_json::Value::from(warnings).to_string());
-            text.push('}');
-            crate::outln!("{text}");
+            crate::outln!("{}", identify::json_text(&report, None, &warnings));
         }
         return Err(CliError::NoDynamics(identify::quality::refusal(
             &recording, &quality,
         )));
     }
-    let refined = args.refine.then(|| {
-        let model = crate::identify::simulate::SimModel::from_report(&report);
-        let data = crate::identify::refine::Data {
-            t: &recording.t,
-            x: &recording.x,
-            u: recording.u.as_deref(),
-        };
-        crate::identify::refine::Summary::of(
-            &crate::identify::refine::refine_and_check(&model, &data),
-            report.omega,
-        )
+    // Refinement on simulation error (the default): the refined model is reported when it
+    // predicts the held-out half at least as well; the streaming model stays in
+    // `streaming_terms`.
+    let refined = (!args.no_refine).then(|| {
+        let check = identify::refine::refine_recording(&recording, &report);
+        report.take_refined(&check);
+        identify::refine::Summary::of(&check, report.omega)
     });
     if args.json {
-        // The report's own fields in their order, then "refined" when asked for.
-        let mut text = serde_json::to_string(&report).unwrap_or_default();
-        if let Some(refined) = &refined {
-            text.pop();
-            text.push_str(",\"refined\":");
-            text.push_str(&serde_json::to_string(refined).unwrap_or_default());
-            text.push('}');
-        }
-        // Last: the warnings (an empty list when there are none).
-        text.pop();
-        text.push_str(",\"warnings\":");
-        text.push_str(&serde_json::Value::from(warnings).to_string());
-        text.push('}');
-        crate::outln!("{text}");
+        crate::outln!(
+            "{}",
+            identify::json_text(&report, refined.as_ref(), &warnings)
+        );
     } else {
-        crate::out!("{}", identify::render(&report));
-        if let Some(refined) = &refined {
-            crate::out!("{}", refined.render(&args.unit));
-        }
+        let note = args.no_refine.then_some("not refined (--no-refine)");
+        crate::out!(
+            "{}",
+            identify::render_reported(&report, refined.as_ref(), note, &args.unit)
+        );
     }
     Ok(())
 }
@@ -297,7 +297,7 @@ fn run_batch(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
     } else {
         ProgressBar::hidden()
     };
-    let results = batch::identify_all(&files, &args.columns, options, || bar.inc(1));
+    let results = batch::identify_all(&files, &args.columns, options, args.refine, || bar.inc(1));
     bar.finish_and_clear();
     let mut out = String::new();
     if args.csv {
@@ -310,17 +310,44 @@ fn run_batch(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
         } else if args.csv {
             batch::csv_row(&file, result)
         } else {
-            batch::text_block(&file, result)
+            batch::text_block(&file, result, &args.unit)
         });
     }
     if let Err(e) = std::io::stdout().write_all(out.as_bytes()) {
         crate::output::fail(&e)
     }
-    let failed = results.iter().filter(|r| r.is_err()).count();
+    let failed = results
+        .iter()
+        .filter(|r| matches!(r, Err(batch::Failure::Error(_))))
+        .count();
     if failed > 0 {
         return Err(CliError::Input(format!(
             "{failed} of {} recordings could not be identified (their rows say why).",
             files.len()
+        )));
+    }
+    // Models withheld by the quality gate: exit status 3, each file named.
+    let withheld: Vec<String> = files
+        .iter()
+        .zip(&results)
+        .filter(|(_, r)| matches!(r, Err(batch::Failure::Withheld(..))))
+        .map(|(p, _)| p.display().to_string())
+        .collect();
+    if !withheld.is_empty() {
+        const NAMED: usize = 5;
+        let mut names = withheld
+            .iter()
+            .take(NAMED)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
+        if withheld.len() > NAMED {
+            names.push_str(&format!(" and {} more", withheld.len() - NAMED));
+        }
+        return Err(CliError::NoDynamics(format!(
+            "no deterministic dynamics found in {} of {} recordings, so their models are withheld: {names} (their rows say why).",
+            withheld.len(),
+            files.len(),
         )));
     }
     Ok(())

@@ -3,14 +3,17 @@
 //! of `lssi identify --json` with "file" first and "warnings" last), a CSV row (file, equation,
 //! terms, coefficients, the selected model's held-out error, samples, rejected, warnings,
 //! error), or the text report under the file's name. A file that fails gets its error in its
-//! row; the others go on.
+//! row; the others go on. Each file goes through the quality gate as one recording does (a
+//! withheld model is a row with the refusal); models are the streaming identifier's unless
+//! `--refine` asks for refinement (10–30 times the identification's time per file), and a
+//! warning says so.
 
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
 use crate::error::CliError;
-use crate::identify::{self, Options, Report, identify_recording};
+use crate::identify::{self, Options, Report};
 use crate::recording::{ColumnNames, Recording};
 
 /// The files named: each path as given, a folder as its `*.csv` files in name order.
@@ -43,26 +46,85 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>, CliError> {
     Ok(files)
 }
 
-/// One recording's report, or its error as a sentence.
-pub type Outcome = Result<Report, String>;
-
-fn one(path: &Path, columns: &ColumnNames, options: &Options) -> Outcome {
-    let recording = Recording::read(path, columns).map_err(|e| e.to_string())?;
-    identify_recording(&recording, options).map_err(|e| e.to_string())
+/// A recording's model as `lssi identify` reports it.
+#[derive(Clone, Debug)]
+pub struct Identified {
+    /// The report (`terms` refined when refinement was asked for and taken).
+    pub report: Report,
+    /// The refinement's summary, when it ran.
+    pub refined: Option<crate::identify::refine::Summary>,
+    /// The warnings of `--json`: left-out samples, and why the model was not refined.
+    pub warnings: Vec<String>,
 }
 
-/// Identifies every file in parallel, calling `done` as each finishes; the results come in the
-/// order of `files`.
+/// Why a recording has no model.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Failure {
+    /// It cannot be read or identified (exit status 2): the sentence.
+    Error(String),
+    /// A model was found but withheld by the quality gate (exit status 3): the sentence
+    /// ("no deterministic dynamics found in …") and the gate's reasons.
+    Withheld(String, Vec<String>),
+}
+
+impl Failure {
+    /// The sentence.
+    pub fn sentence(&self) -> &str {
+        match self {
+            Failure::Error(s) | Failure::Withheld(s, _) => s,
+        }
+    }
+}
+
+/// One recording's model, or why it has none.
+pub type Outcome = Result<Identified, Failure>;
+
+/// Why a model in a batch is the streaming one: refinement is not run on several recordings
+/// at once unless `--refine` asks for it.
+pub const NOT_REFINED: &str =
+    "not refined: several recordings are identified at once (--refine refines each)";
+
+fn one(path: &Path, columns: &ColumnNames, options: &Options, refine: bool) -> Outcome {
+    let recording = Recording::read(path, columns).map_err(|e| Failure::Error(e.to_string()))?;
+    // The same quality gate as one recording: a model that does not explain its data is
+    // withheld, and named.
+    let (mut report, quality) = crate::identify::quality::identify_checked(&recording, options)
+        .map_err(|e| Failure::Error(e.to_string()))?;
+    if !quality.passed() {
+        return Err(Failure::Withheld(
+            crate::identify::quality::refusal(&recording, &quality),
+            quality.failures,
+        ));
+    }
+    let mut warnings = warnings(&report);
+    let refined = if refine {
+        let check = crate::identify::refine::refine_recording(&recording, &report);
+        report.take_refined(&check);
+        Some(crate::identify::refine::Summary::of(&check, report.omega))
+    } else {
+        warnings.push(NOT_REFINED.to_owned());
+        None
+    };
+    Ok(Identified {
+        report,
+        refined,
+        warnings,
+    })
+}
+
+/// Identifies every file in parallel (each through the quality gate, and refined when
+/// `refine`), calling `done` as each finishes; the results come in the order of `files`.
 pub fn identify_all(
     files: &[PathBuf],
     columns: &ColumnNames,
     options: &Options,
+    refine: bool,
     done: impl Fn() + Sync,
 ) -> Vec<Outcome> {
     files
         .par_iter()
         .map(|path| {
-            let result = one(path, columns, options);
+            let result = one(path, columns, options, refine);
             done();
             result
         })
@@ -103,29 +165,34 @@ fn csv_field(text: &str) -> String {
 pub const CSV_HEADER: &str =
     "file,equation,terms,coefficients,held_out_error,samples,rejected,warnings,error\n";
 
-/// One file's JSON line (`--json`), with its newline.
+/// One file's JSON line (`--json`), with its newline: `"file"` first, then the object `lssi
+/// identify --json` prints; or the file, its error and, for a withheld model, `"withheld":
+/// true` and the gate's reasons as `"warnings"`.
 pub fn json_line(file: &str, outcome: &Outcome) -> String {
     match outcome {
-        Ok(report) => {
-            // "file" first, then the report's fields in the order `lssi identify --json`
-            // prints them, then the warnings (rejected samples) it prints on stderr.
-            let mut body = serde_json::to_string(report).unwrap_or_default();
-            body.pop();
+        Ok(done) => {
+            let body = identify::json_text(&done.report, done.refined.as_ref(), &done.warnings);
             format!(
-                "{{\"file\":{},{},\"warnings\":{}}}\n",
+                "{{\"file\":{},{}\n",
                 serde_json::Value::from(file),
                 body.get(1..).unwrap_or_default(),
-                serde_json::Value::from(warnings(report))
             )
         }
-        Err(error) => format!("{}\n", serde_json::json!({ "file": file, "error": error })),
+        Err(Failure::Error(error)) => {
+            format!("{}\n", serde_json::json!({ "file": file, "error": error }))
+        }
+        Err(Failure::Withheld(error, reasons)) => format!(
+            "{}\n",
+            serde_json::json!({ "file": file, "error": error, "withheld": true, "warnings": reasons })
+        ),
     }
 }
 
 /// One file's row of the CSV table (`--csv`), with its newline.
 pub fn csv_row(file: &str, outcome: &Outcome) -> String {
     match outcome {
-        Ok(report) => {
+        Ok(done) => {
+            let report = &done.report;
             let terms: Vec<&str> = report.terms.iter().map(|t| t.term.as_str()).collect();
             let coefficients: Vec<String> =
                 report.terms.iter().map(|t| t.coef.to_string()).collect();
@@ -143,17 +210,27 @@ pub fn csv_row(file: &str, outcome: &Outcome) -> String {
                 fit,
                 report.samples,
                 report.rejected,
-                csv_field(&warnings(report).join(" "))
+                csv_field(&done.warnings.join(" "))
             )
         }
-        Err(error) => format!("{},,,,,,,,{}\n", csv_field(file), csv_field(error)),
+        Err(failure) => format!(
+            "{},,,,,,,,{}\n",
+            csv_field(file),
+            csv_field(failure.sentence())
+        ),
     }
 }
 
 /// One file's text report under its name.
-pub fn text_block(file: &str, outcome: &Outcome) -> String {
+pub fn text_block(file: &str, outcome: &Outcome, unit: &str) -> String {
     match outcome {
-        Ok(report) => format!("== {file}\n{}\n", identify::render(report)),
-        Err(error) => format!("== {file}\nlssi: {error}\n\n"),
+        Ok(done) => {
+            let note = done.refined.is_none().then_some(NOT_REFINED);
+            format!(
+                "== {file}\n{}\n",
+                identify::render_reported(&done.report, done.refined.as_ref(), note, unit)
+            )
+        }
+        Err(failure) => format!("== {file}\nlssi: {}\n\n", failure.sentence()),
     }
 }

@@ -15,7 +15,13 @@
 //!   deviations (1.4826 · the median absolute deviation of r over the recording, at least the
 //!   channel's quantisation step) and at least [`SPIKE_DOMINANCE`] times its neighbours' r
 //!   (a spike of height h gives r = h at its sample and −2h/3 at its neighbours; a step gives
-//!   ±h/2 at two samples and is not a spike).
+//!   ±h/2 at two samples and is not a spike). A spike whose four neighbours are kept is
+//!   *repaired*: the identifier is given that cubic's value instead (the other channels as
+//!   measured), so its derivative window does not restart around it. Leaving it out restarts
+//!   the window, and the hole that leaves in the test-function sums moved the damping of
+//!   `lssi gen eveh`'s harvester by up to 2.1 % (a spike at data row 15001; 0.01 % repaired).
+//!   The cubic's error is of order h⁴ times the fourth derivative, far under the noise at the
+//!   sampling rates the identifier needs; its noise is √(34/36) of one sample's.
 //!
 //! The excitation frequency is estimated from windows within clean stretches only, and the
 //! derivative window from the clean samples (see [`crate::identify::configure`]).
@@ -65,6 +71,9 @@ pub struct Blemish {
     pub t: f64,
     /// The gap's length in seconds, the spike's value, or the non-finite value.
     pub value: f64,
+    /// A spike given to the identifier as the cubic through its neighbours (see
+    /// [`Scan::repairs`]) rather than left out.
+    pub repaired: bool,
 }
 
 impl Blemish {
@@ -82,6 +91,10 @@ impl Blemish {
             ),
             Kind::Early => format!(
                 "data row {row} (t = {}): only {:.3e} s after the previous sample (under half a period); it was left out",
+                self.t, self.value
+            ),
+            Kind::Spike if self.repaired => format!(
+                "data row {row} (t = {}): an isolated spike ({:e}); it was replaced by the cubic through its four neighbours",
                 self.t, self.value
             ),
             Kind::Spike => format!(
@@ -105,6 +118,33 @@ pub struct Scan {
     pub missing: Vec<usize>,
     /// Every blemish, in order.
     pub blemishes: Vec<Blemish>,
+    /// Repaired spikes: per sample, its values (x, v, u) with the spiking channel replaced
+    /// by the cubic through its four neighbours. These samples are in `skip` too (their
+    /// measured values are not used: not for the window choice nor for Ω), but the identifier
+    /// is given the repaired values and does not restart its window ([`Scan::feed`]).
+    pub repairs: std::collections::BTreeMap<usize, Repaired>,
+}
+
+/// A repaired sample's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Repaired {
+    /// x.
+    pub x: f64,
+    /// v, when measured.
+    pub v: Option<f64>,
+    /// u, when measured.
+    pub u: Option<f64>,
+}
+
+/// What the identifier is given for one sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Feed {
+    /// The sample as measured.
+    AsIs,
+    /// The sample with a spike repaired.
+    Repaired(Repaired),
+    /// Nothing: the sample is left out.
+    Skip,
 }
 
 /// The median of a slice (sorted in place); 0 when empty.
@@ -140,6 +180,7 @@ impl Scan {
             restart: vec![false; n],
             missing: vec![0; n],
             blemishes: Vec::new(),
+            repairs: std::collections::BTreeMap::new(),
         };
         let finite = |i: usize| t[i].is_finite() && channels.iter().all(|c| c[i].is_finite());
         let mut found: Vec<Blemish> = Vec::new();
@@ -156,6 +197,7 @@ impl Scan {
                     index: i,
                     t: t[i],
                     value,
+                    repaired: false,
                 });
             }
         }
@@ -176,6 +218,7 @@ impl Scan {
                                 index: i,
                                 t: t[i],
                                 value: step,
+                                repaired: false,
                             });
                         }
                         continue;
@@ -188,13 +231,16 @@ impl Scan {
                             index: i,
                             t: t[i],
                             value: step,
+                            repaired: false,
                         });
                     }
                 }
                 last = Some(t[i]);
             }
-            for channel in &channels {
+            let mut spiking: Vec<(usize, usize)> = Vec::new();
+            for (c, channel) in channels.iter().enumerate() {
                 for i in spikes(channel, &scan) {
+                    spiking.push((i, c));
                     if !scan.skip[i] {
                         scan.skip[i] = true;
                         found.push(Blemish {
@@ -202,8 +248,45 @@ impl Scan {
                             index: i,
                             t: t[i],
                             value: channel[i],
+                            repaired: false,
                         });
                     }
+                }
+            }
+            // Repairs: a spike whose four neighbours are all kept (so not another spike, a
+            // NaN or a gap), each spiking channel replaced by the cubic through them.
+            for b in found.iter_mut().filter(|b| b.kind == Kind::Spike) {
+                let i = b.index;
+                let neighbours_kept = i >= 2
+                    && i + 2 < n
+                    && [i - 2, i - 1, i + 1, i + 2]
+                        .iter()
+                        .all(|&j| !scan.skip[j] && !scan.restart[j] && finite(j))
+                    && !scan.restart[i];
+                if !neighbours_kept {
+                    continue;
+                }
+                let value = |c: usize| {
+                    let s = channels[c];
+                    if spiking.contains(&(i, c)) {
+                        -(s[i - 2] / 6.0) + s[i - 1] / 1.5 + s[i + 1] / 1.5 - s[i + 2] / 6.0
+                    } else {
+                        s[i]
+                    }
+                };
+                // Channel order: x, then v and u when measured.
+                let v = recording.v.is_some().then(|| value(1));
+                let u = recording
+                    .u
+                    .is_some()
+                    .then(|| value(if recording.v.is_some() { 2 } else { 1 }));
+                let repaired = Repaired { x: value(0), v, u };
+                if repaired.x.is_finite()
+                    && repaired.v.is_none_or(f64::is_finite)
+                    && repaired.u.is_none_or(f64::is_finite)
+                {
+                    scan.repairs.insert(i, repaired);
+                    b.repaired = true;
                 }
             }
         }
@@ -215,6 +298,50 @@ impl Scan {
         found.sort_by_key(|b| b.index);
         scan.blemishes = found;
         scan
+    }
+
+    /// What the identifier is given for sample `i`: as measured, repaired, or nothing.
+    pub fn feed(&self, i: usize) -> Feed {
+        match self.repairs.get(&i) {
+            Some(r) => Feed::Repaired(*r),
+            None if self.skip.get(i).copied().unwrap_or(false) => Feed::Skip,
+            None => Feed::AsIs,
+        }
+    }
+
+    /// This scan with the repaired spikes kept (not skipped, no restart after them): for
+    /// what reads the repaired values ([`Scan::repaired`]), such as the estimate of Ω, which
+    /// a hole of a few windows moved by 3·10⁻⁵ rad/s (and the damping by 1 %).
+    pub fn with_repairs_kept(&self) -> Scan {
+        let mut scan = self.clone();
+        for &i in self.repairs.keys() {
+            scan.skip[i] = false;
+            if i + 1 < scan.restart.len() {
+                let gap = self
+                    .blemishes
+                    .iter()
+                    .any(|b| b.index == i + 1 && b.kind == Kind::Gap);
+                scan.restart[i + 1] = gap;
+            }
+        }
+        scan
+    }
+
+    /// Channel `c` (0: x, 1: v, 2: u, of those present) with the repaired spikes' values.
+    pub fn repaired(&self, recording: &Recording, c: usize) -> Option<Vec<f64>> {
+        let mut channels: Vec<&Vec<f64>> = vec![&recording.x];
+        channels.extend(recording.v.as_ref());
+        channels.extend(recording.u.as_ref());
+        let mut out = channels.get(c)?.to_vec();
+        for (&i, r) in &self.repairs {
+            let mut values = vec![r.x];
+            values.extend(r.v);
+            values.extend(r.u);
+            if let Some(v) = values.get(c) {
+                out[i] = *v;
+            }
+        }
+        Some(out)
     }
 
     /// No blemish at all.
@@ -315,12 +442,13 @@ pub fn where_text(rows: &[usize]) -> String {
     }
 }
 
-/// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
-/// so far and whose four neighbours are kept and evenly spaced.
-fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
+/// The cubic residual r of every usable sample of one channel, its median and its robust
+/// standard deviation (1.4826 · MAD); `None` on fewer than 16 usable samples.
+#[allow(clippy::type_complexity)]
+fn residuals(s: &[f64], scan: &Scan) -> Option<(Vec<Option<f64>>, f64, f64)> {
     let n = s.len();
     if n < 16 {
-        return Vec::new();
+        return None;
     }
     let usable = |i: usize| {
         i >= 2
@@ -342,11 +470,36 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
         .filter(|v| v.is_finite())
         .collect();
     if values.len() < 16 {
-        return Vec::new();
+        return None;
     }
     let centre = median(&mut values);
     let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
     let sigma = 1.4826 * median(&mut deviations);
+    Some((r, centre, sigma))
+}
+
+/// The spike rule's threshold on one channel, from a stretch of it: the centre of the cubic
+/// residual r and the limit |r − centre| beyond which a sample is a spike (with
+/// [`SPIKE_DOMINANCE`] over its neighbours). For a reader that sees the recording a sample at a
+/// time after this stretch (`crate::identify::stream`).
+pub fn spike_limit(s: &[f64], scan: &Scan) -> Option<(f64, f64)> {
+    let (_, centre, sigma) = residuals(s, scan)?;
+    let quantum = s
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let scale = sigma.max(if quantum.is_finite() { quantum } else { 0.0 });
+    (scale > 0.0).then_some((centre, SPIKE_MADS * scale))
+}
+
+/// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
+/// so far and whose four neighbours are kept and evenly spaced.
+fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
+    let n = s.len();
+    let Some((r, centre, sigma)) = residuals(s, scan) else {
+        return Vec::new();
+    };
     // The quantisation step: the smallest non-zero difference of consecutive samples.
     let quantum = s
         .windows(2)

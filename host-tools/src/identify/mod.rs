@@ -81,6 +81,9 @@ pub struct TermReport {
     pub term: String,
     /// Coefficient in physical units.
     pub coef: f64,
+    /// Its standard error (a refined model's terms only; absent from the JSON otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub se: Option<f64>,
 }
 
 /// One solution of the sweep.
@@ -108,8 +111,16 @@ pub struct KReport {
 pub struct Report {
     /// Always `x''`.
     pub target: String,
-    /// The selected model's active terms.
+    /// The reported model's active terms: the refined model when refinement was taken
+    /// ([`Report::take_refined`]), else the streaming identifier's.
     pub terms: Vec<TermReport>,
+    /// The streaming identifier's model (what a device reports for the same samples),
+    /// whichever model `terms` is.
+    pub streaming_terms: Vec<TermReport>,
+    /// Which model `terms` is: `"refined"` (on simulation error, on the host) or
+    /// `"streaming"` (the identifier's, as a device computes it).
+    #[serde(rename = "model")]
+    pub reported: crate::identify::refine::Chosen,
     /// All solutions, dense to sparse.
     pub solutions: Vec<SolutionReport>,
     /// Index of the selected solution.
@@ -120,7 +131,7 @@ pub struct Report {
     pub omega: f64,
     /// Whether Ω was estimated from the data.
     pub omega_estimated: bool,
-    /// Linear resonance, Hz (when ξ_x < 0).
+    /// Linear resonance, Hz (when ξ_x < 0), of the reported model (`terms`).
     pub resonance_hz: Option<f64>,
     /// Well positions ±w (double well), in the model's coordinates.
     pub wells: Option<f64>,
@@ -184,18 +195,21 @@ pub fn configure(
     };
     // The window from the data: the target comes from v when it is measured.
     // Blemished samples (non-finite, spikes, too early) are left out (`crate::identify::blemish`).
+    // A repaired spike counts with its repaired value.
     let scan = crate::identify::blemish::Scan::of(recording);
+    let kept_scan = scan.with_repairs_kept();
     let kept = |c: &[f64]| -> Vec<f64> {
         c.iter()
-            .zip(&scan.skip)
+            .zip(&kept_scan.skip)
             .filter(|(s, skip)| s.is_finite() && !**skip)
             .map(|(s, _)| *s)
             .collect()
     };
-    let (source, order): (Vec<f64>, usize) = match &recording.v {
-        Some(v) => (kept(v), 1),
-        None => (kept(&recording.x), 2),
-    };
+    let channel = usize::from(recording.v.is_some());
+    let source_values = scan
+        .repaired(recording, channel)
+        .unwrap_or_else(|| recording.x.clone());
+    let (source, order): (Vec<f64>, usize) = (kept(&source_values), 2 - channel);
     let memory_samples = options
         .memory
         .map_or(source.len(), |m| ((m / dt) as usize).min(source.len()));
@@ -285,12 +299,15 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     })
     .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let mut rows = Vec::new();
-    let x = &recording.x;
-    // Windows within clean, evenly sampled stretches only; each row's place on the time grid.
-    let clean = crate::identify::blemish::CleanWindows::new(
-        &crate::identify::blemish::Scan::of(recording),
-        n,
-    );
+    // Windows within clean, evenly sampled stretches only (a repaired spike with its repaired
+    // value); each row's place on the time grid.
+    let scan = crate::identify::blemish::Scan::of(recording);
+    let x_repaired = scan.repaired(recording, 0).unwrap_or_default();
+    let v_repaired = scan
+        .repaired(recording, 1)
+        .filter(|_| recording.v.is_some());
+    let x = &x_repaired;
+    let clean = crate::identify::blemish::CleanWindows::new(&scan.with_repairs_kept(), n);
     let mut places = Vec::new();
     let mut start = 0;
     while start + n <= x.len() {
@@ -299,7 +316,7 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
             continue;
         }
         let w = &x[start..start + n];
-        let (xh, vh, yh) = match &recording.v {
+        let (xh, vh, yh) = match &v_repaired {
             Some(v) => {
                 let vw = &v[start..start + n];
                 (
@@ -434,14 +451,17 @@ pub fn run<T: Real>(
             .map(|b| format!("{file}: {}", b.sentence())),
     );
     for (i, s) in recording.samples().enumerate() {
-        if scan.skip[i] {
-            continue;
-        }
+        // A repaired spike is given as the cubic through its neighbours (the window goes on).
+        let (x, v, u) = match scan.feed(i) {
+            crate::identify::blemish::Feed::Skip => continue,
+            crate::identify::blemish::Feed::AsIs => (s.x, s.v, s.u),
+            crate::identify::blemish::Feed::Repaired(r) => (r.x, r.v, r.u),
+        };
         let sample = Sample {
             t: s.t,
-            x: T::from_f64(s.x),
-            v: s.v.map(T::from_f64),
-            u: s.u.map(T::from_f64),
+            x: T::from_f64(x),
+            v: v.map(T::from_f64),
+            u: u.map(T::from_f64),
         };
         // A rejected sample is counted and reported; it never stops the run.
         if let Err(why) = identifier.push(sample) {
@@ -492,7 +512,7 @@ pub fn report<T: Real, const P: usize>(
     precision: &str,
 ) -> Report {
     let omega = model.omega;
-    let terms = model
+    let terms: Vec<TermReport> = model
         .terms
         .iter()
         .zip(model.coefficients.iter())
@@ -500,6 +520,7 @@ pub fn report<T: Real, const P: usize>(
         .map(|(t, c)| TermReport {
             term: t.name(omega).to_string(),
             coef: c.to_f64(),
+            se: None,
         })
         .collect();
     let solutions = model
@@ -513,7 +534,9 @@ pub fn report<T: Real, const P: usize>(
         .collect();
     Report {
         target: "x''".into(),
+        streaming_terms: terms.clone(),
         terms,
+        reported: crate::identify::refine::Chosen::Streaming,
         solutions,
         selected: model.selected,
         k: KReport {
@@ -544,6 +567,96 @@ pub fn report<T: Real, const P: usize>(
     }
 }
 
+/// The `lssi identify --json` object: the report's fields (`terms` the reported model,
+/// `streaming_terms` the device's, `model` which one `terms` is), then `"refined"` (the
+/// refinement's summary) when refinement ran, then `"warnings"` (an empty list when there
+/// are none).
+pub fn json_text(
+    report: &Report,
+    refined: Option<&refine::Summary>,
+    warnings: &[String],
+) -> String {
+    let mut text = serde_json::to_string(report).unwrap_or_default();
+    text.pop();
+    if let Some(refined) = refined {
+        text.push_str(",\"refined\":");
+        text.push_str(&serde_json::to_string(refined).unwrap_or_default());
+    }
+    text.push_str(",\"warnings\":");
+    text.push_str(&serde_json::Value::from(warnings.to_vec()).to_string());
+    text.push('}');
+    text
+}
+
+/// An equation `x'' = …` of named terms, with `(c ± se)` where a term has a standard error.
+fn equation(terms: &[TermReport]) -> String {
+    let mut equation = String::from("x'' =");
+    for (i, t) in terms.iter().enumerate() {
+        let term = if t.term == "1" {
+            String::new()
+        } else {
+            format!(" {}", t.term)
+        };
+        if let Some(se) = t.se {
+            let sep = if i == 0 { " " } else { " + " };
+            equation.push_str(&format!("{sep}({:.6e} ± {se:.2e}){term}", t.coef));
+            continue;
+        }
+        let sign = if t.coef < 0.0 { "-" } else { "+" };
+        let value = number(t.coef.abs());
+        if i == 0 {
+            equation.push_str(&format!(
+                " {}{value}{term}",
+                if t.coef < 0.0 { "-" } else { "" }
+            ));
+        } else {
+            equation.push_str(&format!(" {sign} {value}{term}"));
+        }
+    }
+    if terms.is_empty() {
+        equation.push_str(" 0");
+    }
+    equation
+}
+
+/// The text report of `lssi identify`: the reported model's equation, which model it is and
+/// why (`refined`: the refinement's summary when it ran; `note`: why it did not), the
+/// streaming model when it is not the one shown, then the rest of [`render`].
+pub fn render_reported(
+    report: &Report,
+    refined: Option<&refine::Summary>,
+    note: Option<&str>,
+    unit: &str,
+) -> String {
+    let plain = render(report);
+    let mut out = format!("{}\n", equation(&report.terms));
+    match report.reported {
+        refine::Chosen::Refined => {
+            out.push_str("model: refined on simulation error (host only)\n");
+        }
+        refine::Chosen::Streaming => {
+            out.push_str("model: the streaming identifier's (as a device computes it)\n")
+        }
+    }
+    if let Some(summary) = refined {
+        out.push_str(&summary.render(unit));
+    }
+    if let Some(note) = note {
+        out.push_str(&format!("  {note}\n"));
+    }
+    if report.reported == refine::Chosen::Refined {
+        out.push_str(&format!(
+            "streaming model (as a device computes it): {}\n",
+            equation(&report.streaming_terms)
+        ));
+    }
+    for line in plain.lines().skip(1) {
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
 /// Formats a coefficient with 5 significant digits.
 fn number(v: f64) -> String {
     if v == 0.0 {
@@ -567,28 +680,7 @@ fn k_text(k: u8) -> String {
 /// The human-readable report.
 pub fn render(report: &Report) -> String {
     let mut out = String::new();
-    let mut equation = String::from("x'' =");
-    for (i, t) in report.terms.iter().enumerate() {
-        let sign = if t.coef < 0.0 { "-" } else { "+" };
-        let value = number(t.coef.abs());
-        let term = if t.term == "1" {
-            String::new()
-        } else {
-            format!(" {}", t.term)
-        };
-        if i == 0 {
-            equation.push_str(&format!(
-                " {}{value}{term}",
-                if t.coef < 0.0 { "-" } else { "" }
-            ));
-        } else {
-            equation.push_str(&format!(" {sign} {value}{term}"));
-        }
-    }
-    if report.terms.is_empty() {
-        equation.push_str(" 0");
-    }
-    out.push_str(&equation);
+    out.push_str(&equation(&report.terms));
     out.push('\n');
     out.push_str(&format!(
         "K: x = {}, v = {}   window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",

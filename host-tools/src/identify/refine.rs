@@ -825,6 +825,71 @@ pub fn refine_and_check(model: &SimModel, data: &Data) -> Check {
     }
 }
 
+/// [`refine_and_check`] on a recording, from the streaming identifier's report: the samples
+/// the identifier left out (non-finite values, isolated spikes, samples too early; see
+/// [`crate::identify::blemish`]) are left out here too, so a spike is not fitted and a NaN
+/// does not stop the simulation (the simulation steps over a left-out sample; a time gap is
+/// one longer step).
+pub fn refine_recording(
+    recording: &crate::recording::Recording,
+    report: &crate::identify::Report,
+) -> Check {
+    let scan = crate::identify::blemish::Scan::of(recording);
+    let keep: Vec<usize> = (0..recording.len())
+        .filter(|&i| {
+            !scan.skip.get(i).copied().unwrap_or(false)
+                && recording.t[i].is_finite()
+                && recording.x[i].is_finite()
+                && recording.u.as_ref().is_none_or(|u| u[i].is_finite())
+        })
+        .collect();
+    let pick = |c: &[f64]| keep.iter().map(|&i| c[i]).collect::<Vec<f64>>();
+    let (t, x) = (pick(&recording.t), pick(&recording.x));
+    let u = recording.u.as_deref().map(pick);
+    let data = Data {
+        t: &t,
+        x: &x,
+        u: u.as_deref(),
+    };
+    refine_and_check(&SimModel::from_report(report), &data)
+}
+
+impl crate::identify::Report {
+    /// Takes the refined model of `check` as the reported one (`terms`, with standard errors,
+    /// and the resonance and wells computed from it) when the check chose it; the streaming
+    /// model stays in `streaming_terms` (and in the simulation model). A check that kept the
+    /// streaming model changes nothing.
+    pub fn take_refined(&mut self, check: &Check) {
+        if check.chosen != Chosen::Refined {
+            return;
+        }
+        let omega = check.model.omega;
+        self.terms = check
+            .model
+            .terms
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, c))| *c != 0.0)
+            .map(|(j, (term, coef))| crate::identify::TermReport {
+                term: term.name(omega).to_string(),
+                coef: *coef,
+                se: check
+                    .standard_errors
+                    .as_ref()
+                    .and_then(|se| se.get(j).copied()),
+            })
+            .collect();
+        self.reported = Chosen::Refined;
+        let force = lssi_core::RestoringForce::from_terms(
+            check.model.terms.iter().copied(),
+            check.model.offsets[0],
+        );
+        self.resonance_hz = force.resonance_hz();
+        self.wells = force.wells();
+        self.well_resonance_hz = force.well_resonance_hz();
+    }
+}
+
 /// One refined term, as `lssi identify --refine` reports it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct TermSummary {
@@ -886,22 +951,10 @@ impl Summary {
         }
     }
 
-    /// Lines for the text report, `unit` the recording's unit of x.
+    /// Lines for the text report after the equation, `unit` the recording's unit of x: why
+    /// this model, its free run over the held-out half, and coarse sampling when found.
     pub fn render(&self, unit: &str) -> String {
         let mut out = String::new();
-        let body: Vec<String> = self
-            .terms
-            .iter()
-            .map(|t| match t.se {
-                Some(se) => format!("({:.6e} ± {:.2e}) {}", t.coef, se, t.term),
-                None => format!("{:.6e} {}", t.coef, t.term),
-            })
-            .collect();
-        let label = match self.chosen {
-            Chosen::Refined => "refined on simulation error",
-            Chosen::Streaming => "the streaming model (not refined)",
-        };
-        out.push_str(&format!("\n{label}: x'' = {}\n", body.join(" + ")));
         out.push_str(&format!("  {}\n", self.reason));
         if let Some(f) = self.free_run {
             out.push_str(&format!(

@@ -20,9 +20,20 @@
 //! 4. The identifier takes the excerpt, then the rest of the file chunk by chunk; nothing of
 //!    the file is held but the excerpt.
 //!
+//! Blemishes as in memory ([`crate::identify::blemish`]): the excerpt is scanned as a small
+//! file is (NaN, time gaps and spikes left out or repaired, each named); the rest goes through
+//! the spike rule on a sliding run of seven samples with the excerpt's thresholds (a spike is
+//! repaired by the cubic through its neighbours and named), and the identifier itself leaves
+//! out non-finite samples and restarts on time gaps. The configuration and the Ω probes take
+//! repaired values and clean windows only. The quality gate ([`crate::identify::quality`])
+//! runs on the excerpt (its own model, configured as the file's; the whole file is not held):
+//! a failure withholds the file's model, exit status 3, as for a small file.
+//!
 //! A file that turns out to end within the excerpt is identified by
 //! [`crate::identify::identify_recording`] itself, so the result is the in-memory one.
-//! Not streamed: `--track` and `--refine` (they need the whole signal) and batches.
+//! Not streamed: `--track` and `--refine` (they need the whole signal) and batches. A streamed
+//! file is not refined on simulation error (the default for one file in memory): the output says
+//! so (a warning naming the file), and `--refine` reads it whole.
 
 use std::fs::File;
 use std::io::{self, BufReader, Read, Seek, SeekFrom};
@@ -32,6 +43,7 @@ use lssi_core::derivative::Taps;
 use lssi_core::factor::Factor;
 use lssi_core::{Config, Identifier, Library, LibraryConfig, Real};
 
+use crate::identify::blemish::Feed;
 use crate::identify::{
     self, IdentifyError, Options, Report, TERM_CAPACITY, WINDOW_CAPACITY, configure,
 };
@@ -367,6 +379,13 @@ pub struct StreamSummary {
     pub excerpt_omega: Option<f64>,
     /// Probes read to refine Ω.
     pub probes: usize,
+    /// The quality gate ([`crate::identify::quality`]) on the excerpt (the whole file when it
+    /// was not streamed): the whole file is not held, so the gate's checks (which run the
+    /// identifier again in the other precision and simulate the model) are made on the
+    /// excerpt's own model, configured as the file's; a failure withholds the file's model.
+    pub quality: crate::identify::quality::Quality,
+    /// Rows the gate saw.
+    pub gated_rows: usize,
 }
 
 /// Identifies the recording at `path` without holding it: see the module docs. `progress` is
@@ -388,14 +407,17 @@ pub fn identify_file(
         .into());
     }
     if excerpt.len() < stream.excerpt_rows {
-        let report = identify::identify_recording(&excerpt, options)?;
+        let (report, quality) = identify::quality::identify_checked(&excerpt, options)?;
         let summary = StreamSummary {
             streamed: false,
             excerpt_omega: None,
             probes: 0,
+            quality,
+            gated_rows: excerpt.len(),
         };
         return Ok((report, summary));
     }
+    let (_, quality) = identify::quality::identify_checked(&excerpt, options)?;
     let clock = std::time::Instant::now();
     let (mut config, estimated) = configure(&excerpt, options)?;
     debug(&format!("configure {:?}", clock.elapsed()));
@@ -403,6 +425,8 @@ pub fn identify_file(
         streamed: true,
         excerpt_omega: None,
         probes: 0,
+        gated_rows: excerpt.len(),
+        quality,
     };
     if estimated {
         summary.excerpt_omega = Some(config.omega);
@@ -457,17 +481,66 @@ fn run<T: Real>(
             ));
         }
     };
+    // The excerpt as in memory: its blemishes found by the scan, spikes repaired, the other
+    // blemished samples left out (each named).
+    let scan = crate::identify::blemish::Scan::of(&excerpt);
+    let mut blemished = scan.skipped() as u64;
+    let mut notes: Vec<String> = scan
+        .blemishes
+        .iter()
+        .take(NAMED_REJECTIONS)
+        .map(|b| format!("{file}: {}", b.sentence()))
+        .collect();
     for (i, s) in excerpt.samples().enumerate() {
-        push(i, s);
+        match scan.feed(i) {
+            Feed::Skip => {}
+            Feed::AsIs => push(i, s),
+            Feed::Repaired(r) => push(
+                i,
+                Sample {
+                    x: r.x,
+                    v: r.v,
+                    u: r.u,
+                    ..s
+                },
+            ),
+        }
     }
+    // The rest: the spike rule with the excerpt's thresholds, on a sliding run of seven
+    // samples (a spike's residual against its neighbours'); a spike is repaired as in memory.
+    // (Non-finite values and time gaps the identifier itself leaves out and restarts on.)
+    let mut channels = vec![excerpt.x.clone()];
+    channels.extend(excerpt.v.clone());
+    channels.extend(excerpt.u.clone());
+    let limits: Vec<Option<(f64, f64)>> = channels
+        .iter()
+        .map(|c| crate::identify::blemish::spike_limit(c, &scan))
+        .collect();
+    drop(channels);
+    let mut spikes = SpikeRepair::new(limits, scan.dt);
     let mut i = excerpt.len();
     drop(excerpt);
     while let Some(s) = csv.next_sample()? {
-        push(i, s);
+        if let Some((j, out, spike)) = spikes.push(i, s) {
+            if let Some(value) = spike {
+                blemished += 1;
+                if notes.len() < NAMED_REJECTIONS {
+                    notes.push(format!(
+                        "{file}: data row {} (t = {}): an isolated spike ({value:e}); it was replaced by the cubic through its four neighbours",
+                        j + 1,
+                        out.t
+                    ));
+                }
+            }
+            push(j, out);
+        }
         i += 1;
         if i.is_multiple_of(1 << 16) {
             progress(csv.bytes_read(), csv.size());
         }
+    }
+    for (j, out) in spikes.finish() {
+        push(j, out);
     }
     progress(csv.size(), csv.size());
     identifier.screen();
@@ -484,11 +557,121 @@ fn run<T: Real>(
         model,
         &config,
         omega_estimated,
-        counters.rejected(),
+        counters.rejected() + blemished,
         std::any::type_name::<T>(),
     );
-    report.rejections = rejections;
+    notes.extend(rejections);
+    report.rejections = notes;
     Ok(report)
+}
+
+/// The spike rule on a stream: samples go through a run of seven; the middle one is a spike
+/// when its cubic residual r (against its four neighbours) is beyond the channel's limit and
+/// [`crate::identify::blemish::SPIKE_DOMINANCE`] times its neighbours' r, all seven finite and
+/// evenly spaced. A spike is replaced by the cubic's value.
+struct SpikeRepair {
+    limits: Vec<Option<(f64, f64)>>,
+    dt: f64,
+    run: std::collections::VecDeque<(usize, Sample)>,
+    /// Repaired spikes still in the run: (index, measured value).
+    judged: Vec<(usize, f64)>,
+}
+
+impl SpikeRepair {
+    fn new(limits: Vec<Option<(f64, f64)>>, dt: f64) -> Self {
+        Self {
+            limits,
+            dt,
+            run: std::collections::VecDeque::with_capacity(8),
+            judged: Vec::new(),
+        }
+    }
+
+    fn channel(s: &Sample, c: usize) -> Option<f64> {
+        match c {
+            0 => Some(s.x),
+            1 => s.v.or(s.u),
+            _ => s.u,
+        }
+    }
+
+    fn set(s: &mut Sample, c: usize, value: f64) {
+        match c {
+            0 => s.x = value,
+            1 if s.v.is_some() => s.v = Some(value),
+            _ => s.u = Some(value),
+        }
+    }
+
+    /// Takes sample `i`; gives back the sample leaving the run (its index, the sample,
+    /// and the spike's measured value when it was repaired).
+    fn push(&mut self, i: usize, s: Sample) -> Option<(usize, Sample, Option<f64>)> {
+        self.run.push_back((i, s));
+        let mut spike = None;
+        if self.run.len() == 7 && self.dt > 0.0 {
+            let even = self.run.iter().zip(self.run.iter().skip(1)).all(|(a, b)| {
+                let step = b.1.t - a.1.t;
+                step > 0.5 * self.dt && step < 1.5 * self.dt
+            });
+            if even {
+                for c in 0..self.limits.len() {
+                    let Some((centre, limit)) = self.limits[c] else {
+                        continue;
+                    };
+                    let v: Vec<f64> = self
+                        .run
+                        .iter()
+                        .map(|(_, s)| Self::channel(s, c).unwrap_or(f64::NAN))
+                        .collect();
+                    let cubic = |k: usize| {
+                        -(v[k - 2] / 6.0) + v[k - 1] / 1.5 + v[k + 1] / 1.5 - v[k + 2] / 6.0
+                    };
+                    let size = |k: usize| {
+                        let r = v[k] - cubic(k) - centre;
+                        if r.is_finite() {
+                            r.abs()
+                        } else {
+                            f64::INFINITY
+                        }
+                    };
+                    let around = v.iter().all(|x| x.is_finite());
+                    if !around {
+                        continue;
+                    }
+                    let here = size(3);
+                    let neighbours = size(2).max(size(4));
+                    if here > limit
+                        && here >= crate::identify::blemish::SPIKE_DOMINANCE * neighbours
+                    {
+                        let value = cubic(3);
+                        if value.is_finite() {
+                            spike = Some(v[3]);
+                            Self::set(&mut self.run[3].1, c, value);
+                        }
+                    }
+                }
+            }
+        }
+        // The middle one was just judged; it leaves the run three samples later.
+        if let Some(value) = spike {
+            self.judged.push((self.run[3].0, value));
+        }
+        if self.run.len() < 7 {
+            return None;
+        }
+        let (j, out) = self.run.pop_front()?;
+        let verdict = self
+            .judged
+            .iter()
+            .position(|(k, _)| *k == j)
+            .map(|p| self.judged.remove(p).1);
+        Some((j, out, verdict))
+    }
+
+    /// The samples still in the run, in order.
+    fn finish(&mut self) -> Vec<(usize, Sample)> {
+        self.run.drain(..).collect()
+    }
 }
 
 /// Rows of the Ω fit: (time, polynomial library row, x''), every 4th sample, from a
@@ -503,12 +686,23 @@ struct Rows {
 impl Rows {
     fn add(&mut self, recording: &Recording, every: usize) {
         let n = self.taps.len();
-        let x = &recording.x;
+        // As `identify::estimate_omega`: windows within clean stretches only, a repaired
+        // spike with its repaired value (a spike of 1e300 in a probe took Ω off by 4e-4).
+        let scan = crate::identify::blemish::Scan::of(recording);
+        let clean = crate::identify::blemish::CleanWindows::new(&scan.with_repairs_kept(), n);
+        let x = scan.repaired(recording, 0).unwrap_or_default();
+        let v_repaired = scan
+            .repaired(recording, 1)
+            .filter(|_| recording.v.is_some());
         let mut start = 0;
         let mut count = 0usize;
         while start + n <= x.len() {
+            if !clean.ok(start) {
+                start += 4;
+                continue;
+            }
             let w = &x[start..start + n];
-            let (xh, vh, yh) = match &recording.v {
+            let (xh, vh, yh) = match &v_repaired {
                 Some(v) => {
                     let vw = &v[start..start + n];
                     (
@@ -612,18 +806,21 @@ fn refine_omega(
     // The window `configure` estimated Ω with (rows as they are; the weak form's short window
     // is chosen after).
     let dt = config.sample_period;
-    let (source, order): (Vec<f64>, usize) = match &excerpt.v {
-        Some(v) => (v.iter().copied().filter(|s| s.is_finite()).collect(), 1),
-        None => (
-            excerpt
-                .x
-                .iter()
-                .copied()
-                .filter(|s| s.is_finite())
-                .collect(),
-            2,
-        ),
-    };
+    // The clean samples, a repaired spike with its repaired value (as `configure` takes them).
+    let scan = crate::identify::blemish::Scan::of(excerpt);
+    let kept = scan.with_repairs_kept();
+    let channel = usize::from(excerpt.v.is_some());
+    let values = scan
+        .repaired(excerpt, channel)
+        .unwrap_or_else(|| excerpt.x.clone());
+    let source: Vec<f64> = values
+        .iter()
+        .zip(&kept.skip)
+        .filter(|(s, skip)| s.is_finite() && !**skip)
+        .map(|(s, _)| *s)
+        .collect();
+    let order = 2 - channel;
+    drop(values);
     let memory_samples = options
         .memory
         .map_or(source.len(), |m| ((m / dt) as usize).min(source.len()));
@@ -819,6 +1016,7 @@ pub fn identify_command(
     columns: &ColumnNames,
     options: &Options,
     json: bool,
+    note: Option<&str>,
 ) -> Result<(), crate::error::CliError> {
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     use std::io::IsTerminal;
@@ -842,7 +1040,7 @@ pub fn identify_command(
         |read, _| bar.set_position(read),
     );
     bar.finish_and_clear();
-    let (report, _) = result.map_err(|e| match e {
+    let (report, summary) = result.map_err(|e| match e {
         StreamError::Recording(e) => crate::error::CliError::from(e),
         StreamError::Identify(e) => crate::error::CliError::from(e),
     })?;
@@ -858,25 +1056,28 @@ pub fn identify_command(
             rejected
         );
     }
-    // Read in chunks, the recording is not held: the quality gate (which runs it again in
-    // the other precision and simulates it) is not applied, and --json says so.
-    let gate = format!(
-        "{}: read in chunks (over {} MiB), so the quality gate was not applied",
-        path.display(),
-        STREAM_BYTES >> 20
-    );
-    eprintln!("lssi: warning: {gate}.");
+    // Read in chunks, the recording is not held: the quality gate ran on the excerpt.
+    let mut warnings = identify::batch::warnings(&report);
+    if !summary.quality.passed() {
+        warnings.extend(summary.quality.failures.iter().cloned());
+        if json {
+            crate::outln!("{}", identify::json_text(&report, None, &warnings));
+        }
+        return Err(crate::error::CliError::NoDynamics(format!(
+            "no deterministic dynamics found in {} (its first {} rows, on which the quality gate of a file read in chunks runs): {}.",
+            path.display(),
+            summary.gated_rows,
+            summary.quality.failures.join("; ")
+        )));
+    }
+    if let Some(note) = note {
+        eprintln!("lssi: warning: {note}.");
+    }
     if json {
-        let mut warnings = identify::batch::warnings(&report);
-        warnings.push(gate);
-        let mut text = serde_json::to_string(&report).unwrap_or_default();
-        text.pop();
-        text.push_str(",\"warnings\":");
-        text.push_str(&serde_json::Value::from(warnings).to_string());
-        text.push('}');
-        crate::outln!("{text}");
+        warnings.extend(note.map(str::to_owned));
+        crate::outln!("{}", identify::json_text(&report, None, &warnings));
     } else {
-        crate::out!("{}", identify::render(&report));
+        crate::out!("{}", identify::render_reported(&report, None, note, "[x]"));
     }
     Ok(())
 }

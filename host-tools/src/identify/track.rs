@@ -130,13 +130,19 @@ pub fn track<T: Real>(
         .collect();
     let mut snapshots = Vec::new();
     // Blemished samples are left out as `identify` leaves them out (`crate::identify::blemish`).
-    let skip = crate::identify::blemish::Scan::of(recording).skip;
-    for (s, _) in recording.samples().zip(&skip).filter(|(_, skip)| !**skip) {
+    // (a repaired spike as the cubic through its neighbours).
+    let scan = crate::identify::blemish::Scan::of(recording);
+    for (i, s) in recording.samples().enumerate() {
+        let (x, v, u) = match scan.feed(i) {
+            crate::identify::blemish::Feed::Skip => continue,
+            crate::identify::blemish::Feed::AsIs => (s.x, s.v, s.u),
+            crate::identify::blemish::Feed::Repaired(r) => (r.x, r.v, r.u),
+        };
         let sample = Sample {
             t: s.t,
-            x: T::from_f64(s.x),
-            v: s.v.map(T::from_f64),
-            u: s.u.map(T::from_f64),
+            x: T::from_f64(x),
+            v: v.map(T::from_f64),
+            u: u.map(T::from_f64),
         };
         // A rejected sample is counted by the identifier; it never stops the run.
         if let Ok(true) = identifier.push(sample)

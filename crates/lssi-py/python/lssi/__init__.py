@@ -10,7 +10,7 @@ a PySINDy-like API::
     m.coefficients()               # {"1": 0.0, "x": 336.68, ...}
     x_sim, v_sim = m.simulate((x[0], 0.0), t)
 
-``Model.to_json()`` is the object ``lssi identify --json`` prints for the same data and
+``Model.to_json()`` is the object ``lssi identify --no-refine --json`` prints for the same data and
 options. ``Stream`` identifies online, block by block. ``lssi.dask.identify_many`` maps the
 identification over a Dask cluster.
 """
@@ -162,7 +162,7 @@ class Model:
         return self._fitted().equation()
 
     def print(self) -> None:
-        """Prints the report ``lssi identify`` prints (equation, configuration, sweep)."""
+        """Prints the report ``lssi identify --no-refine`` prints (equation, configuration, sweep)."""
         print(self._fitted().text(), end="")
 
     def feature_names(self) -> List[str]:
@@ -182,7 +182,8 @@ class Model:
         return None
 
     def to_json(self) -> str:
-        """The object ``lssi identify --json`` prints for the same data and options."""
+        """The object ``lssi identify --no-refine --json`` prints for the same data and options
+        (the streaming model; the command refines it on simulation error by default)."""
         return self._fitted().json()
 
     def report(self) -> Dict[str, Any]:
