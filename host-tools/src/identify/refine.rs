@@ -45,8 +45,8 @@
 //!   0.015), and the shortfall was the fixed Ω, not the residual's correlation.
 
 use lssi_core::Term;
-use rayon::prelude::*;
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::identify::simulate::SimModel;
