@@ -429,14 +429,18 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
         let e2 = m.max(n - m).min(pairs);
         let sign = if odd { -T::ONE } else { T::ONE };
         let mut lanes = [T::ZERO; 4];
-        fold_sum(
-            &h[..e1],
-            &s0[..e1],
-            &s1[n - m - e1..n - m],
-            sign,
-            0,
-            &mut lanes,
-        );
+        // Where the window does not wrap (s0 empty: most rows, in a ring longer than the
+        // window) there are no pairs across the break: skip the call.
+        if e1 > 0 {
+            fold_sum(
+                &h[..e1],
+                &s0[..e1],
+                &s1[n - m - e1..n - m],
+                sign,
+                0,
+                &mut lanes,
+            );
+        }
         if m <= n - m {
             fold_sum(
                 &h[e1..e2],
