@@ -219,4 +219,33 @@ mod tests {
         assert!((e.v - 7.0).abs() < 0.5, "{e:?}");
         assert_eq!(f.fourth_differences(true).1, 256.0);
     }
+
+    /// Wherever the ring wraps (the five newest samples in its newer slice, or split across
+    /// both), the fourth differences are those of the five newest samples, bit for bit, and
+    /// 0 stands in for samples not written yet.
+    #[test]
+    fn fourth_differences_read_the_newest_samples_at_every_wrap() {
+        let channels = Channels {
+            velocity: true,
+            input: false,
+        };
+        let mut f = front(channels);
+        let value = |i: i32| (0.37 * f64::from(i)).sin() + 0.01 * f64::from(i * i % 7);
+        for i in 0..200 {
+            f.write(&Sample {
+                t: f64::from(i) * 0.01,
+                x: value(i),
+                v: Some(value(i + 3)),
+                u: None,
+            });
+            let recent = |shift: i32| {
+                core::array::from_fn(|k| {
+                    let j = i - k as i32;
+                    if j >= 0 { value(j + shift) } else { 0.0 }
+                })
+            };
+            let expected = (fourth_difference(recent(0)), fourth_difference(recent(3)));
+            assert_eq!(f.fourth_differences(true), expected, "{i}");
+        }
+    }
 }
