@@ -220,6 +220,33 @@ impl core::error::Error for LibraryError {}
 pub struct Library<const P: usize> {
     terms: heapless::Vec<Term, P>,
     config: LibraryConfig,
+    /// Each term as a product `left[a] · right[b]` of [`Library::evaluate_scaled`]'s two
+    /// tables: (a, b) per column.
+    factors: [[u8; 2]; P],
+}
+
+/// [`Library::evaluate_scaled`]'s left table: x^0..x^9 at 0..=9, sin(kΩt) at 9 + k, cos(kΩt)
+/// at 17 + k (k = 1..=8), u at 26; its right table holds v^0..v^9. An index is masked with
+/// the table's length − 1, which the compiler sees is in bounds.
+const LEFT: usize = 32;
+const RIGHT: usize = 16;
+const SIN_AT: u8 = MAX_POLY_ORDER;
+const COS_AT: u8 = MAX_POLY_ORDER + MAX_HARMONICS;
+const INPUT_AT: u8 = MAX_POLY_ORDER + 2 * MAX_HARMONICS + 1;
+const _: () = assert!((INPUT_AT as usize) < LEFT && (MAX_POLY_ORDER as usize) < RIGHT);
+
+impl Term {
+    /// (a, b) with the term = left[a] · right[b] ([`Library::evaluate_scaled`]); the factor
+    /// that is not a power is x⁰ or v⁰ = 1, and a product by 1 is exact.
+    const fn factors(self) -> [u8; 2] {
+        match self {
+            Term::Constant => [0, 0],
+            Term::Monomial { px, pv } => [px, pv],
+            Term::Sin(k) => [SIN_AT + k, 0],
+            Term::Cos(k) => [COS_AT + k, 0],
+            Term::Input => [INPUT_AT, 0],
+        }
+    }
 }
 
 impl<const P: usize> Library<P> {
@@ -235,6 +262,7 @@ impl<const P: usize> Library<P> {
                 harmonics: 0,
                 input: false,
             },
+            factors: [[0; 2]; P],
         }
     }
 
@@ -274,9 +302,14 @@ impl<const P: usize> Library<P> {
         if config.input {
             push(Term::Input);
         }
+        let mut factors = [[0; 2]; P];
+        for (f, t) in factors.iter_mut().zip(terms.iter()) {
+            *f = t.factors();
+        }
         Ok(Self {
             terms,
             config: *config,
+            factors,
         })
     }
 
@@ -377,6 +410,45 @@ impl<const P: usize> Library<P> {
                 Term::Cos(k) => cosines[usize::from(k)],
                 Term::Input => u,
             };
+        }
+    }
+
+    /// [`Library::evaluate_sin_cos`] with column j multiplied by `scales[j]`, bit for bit:
+    /// each term is one product of two table entries (a term that is not a monomial times
+    /// x⁰ or v⁰ = 1, exact), so the row is one loop without a branch per term.
+    #[inline]
+    pub fn evaluate_scaled<T: Real>(
+        &self,
+        (x, v, s1, c1, u): (T, T, T, T, T),
+        scales: &[T; P],
+        row: &mut [T; P],
+    ) {
+        let order = usize::from(self.config.poly_order).min(MAX_POLY_ORDER as usize);
+        let mut left = [T::ZERO; LEFT];
+        let mut right = [T::ZERO; RIGHT];
+        (left[0], right[0]) = (T::ONE, T::ONE);
+        for i in 1..=order {
+            left[i] = left[i - 1] * x;
+            right[i] = right[i - 1] * v;
+        }
+        let harmonics = usize::from(self.config.harmonics).min(MAX_HARMONICS as usize);
+        if harmonics > 0 {
+            let (sin, cos) = (usize::from(SIN_AT), usize::from(COS_AT));
+            // sin 0 = 0 and cos 0 = 1 start the recurrence, as in `evaluate_sin_cos`.
+            let (mut s0, mut c0) = (T::ZERO, T::ONE);
+            let (mut s, mut c) = (s1, c1);
+            let two_c = c1 + c1;
+            for k in 1..=harmonics {
+                left[sin + k] = s;
+                left[cos + k] = c;
+                (s0, s) = (s, two_c * s - s0);
+                (c0, c) = (c, two_c * c - c0);
+            }
+        }
+        left[usize::from(INPUT_AT)] = u;
+        let n = self.terms.len();
+        for ((slot, [a, b]), d) in row[..n].iter_mut().zip(&self.factors).zip(scales) {
+            *slot = left[usize::from(*a) & (LEFT - 1)] * right[usize::from(*b) & (RIGHT - 1)] * *d;
         }
     }
 
@@ -488,6 +560,49 @@ mod tests {
     extern crate std;
     use super::*;
     use std::string::ToString;
+
+    /// `evaluate_scaled` is `evaluate_sin_cos` followed by the scaling, bit for bit, for
+    /// every family, order, harmonic count and the input.
+    #[test]
+    fn evaluate_scaled_matches_evaluate_sin_cos_bit_for_bit() {
+        let families = [
+            PolyFamily::All,
+            PolyFamily::Families,
+            PolyFamily::OddFamilies,
+        ];
+        for family in families {
+            for poly_order in 1..=MAX_POLY_ORDER {
+                for harmonics in 0..=MAX_HARMONICS {
+                    for (constant, input) in [(true, false), (false, true)] {
+                        let config = LibraryConfig {
+                            poly_order,
+                            family,
+                            constant,
+                            harmonics,
+                            input,
+                        };
+                        let Ok(library) = Library::<32>::new(&config) else {
+                            continue;
+                        };
+                        let scales: [f32; 32] = core::array::from_fn(|j| 0.3 + j as f32 * 0.7);
+                        let (x, v, u) = (-1.37f32, 0.81f32, 2.5f32);
+                        let phase = 0.9f32;
+                        let (s1, c1) = (phase.sin(), phase.cos());
+                        let mut expected = [0.0f32; 32];
+                        library.evaluate_sin_cos(x, v, s1, c1, u, &mut expected);
+                        for (e, d) in expected.iter_mut().zip(scales) {
+                            *e *= d;
+                        }
+                        let mut row = [0.0f32; 32];
+                        library.evaluate_scaled((x, v, s1, c1, u), &scales, &mut row);
+                        let bits =
+                            |r: &[f32]| r.iter().map(|t| t.to_bits()).collect::<std::vec::Vec<_>>();
+                        assert_eq!(bits(&row), bits(&expected), "{config:?}");
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn names_follow_the_convention() {

@@ -178,12 +178,15 @@ impl<T: Real> KnnSmoother<T> {
     /// [`Self::push`], when `apply` is true. When it is false the smoothing is not applied:
     /// ε(K) is still accumulated, on one row in 16 instead of one in 4, the other rows only
     /// go into the history, and what comes back is the unsmoothed value ([`Self::centre`]).
+    ///
+    /// Inline: the rows that only go into the history (most of them while the smoothing is
+    /// not applied) cost a ring write and a count, not a call into the neighbour search.
+    #[inline(always)]
     pub fn push_with(&mut self, value: T, apply: bool) -> Option<T> {
         if !self.record(value) {
             return None;
         }
-        let centre = SPAN + 1;
-        let own = self.at(centre);
+        let own = self.at(SPAN + 1);
         if !apply {
             self.rows = self.rows.wrapping_add(1);
             if !(self.rows.wrapping_add(self.phase))
@@ -194,6 +197,14 @@ impl<T: Real> KnnSmoother<T> {
             // Undo the count: the evaluation below counts the row itself.
             self.rows = self.rows.wrapping_sub(1);
         }
+        Some(self.smooth(own, apply))
+    }
+
+    /// The neighbour search and the weights of [`Self::push_with`] for a row whose history
+    /// is full, with its own value `own`.
+    #[inline(never)]
+    fn smooth(&mut self, own: T, apply: bool) -> T {
+        let centre = SPAN + 1;
         let (cl, cr) = (self.at(centre - 1), self.at(centre + 1));
         let order = self.nearest(cl, cr);
         self.rows = self.rows.wrapping_add(1);
@@ -220,9 +231,9 @@ impl<T: Real> KnnSmoother<T> {
                     chosen = estimate;
                 }
             }
-            Some(chosen)
+            chosen
         } else {
-            Some(weights_for(self.k))
+            weights_for(self.k)
         }
     }
 

@@ -91,16 +91,27 @@ impl<T: Real, const P: usize> TestRows<T, P> {
         self.quarter
     }
 
+    /// Adds a row's weighted target `wy` to sum `j`, at its row `i`; hands the sum to `emit`
+    /// and starts it again when that row is its last.
+    #[inline(always)]
+    fn add_target(&mut self, j: usize, i: u32, wy: T, emit: &mut impl FnMut(&[T; P], T)) {
+        self.targets[j] += wy;
+        if i + 1 == self.width {
+            emit(&self.columns[j], self.targets[j]);
+            self.columns[j] = [T::ZERO; P];
+            self.targets[j] = T::ZERO;
+        }
+    }
+
     /// Adds a row (its first `n` columns and its target) to the sums it falls in; a sum
     /// that completes with it is handed to `emit` and started again.
     pub fn push(&mut self, theta: &[T; P], y: T, n: usize, mut emit: impl FnMut(&[T; P], T)) {
         // Once all four sums run (after the first 3L/4 rows), the four column updates go in
         // one pass over the row: each θ_c loaded once for four sums. Every sum gets the same
         // products in the same order as one at a time, so the sums are the same bit for bit.
-        let all = self.phase >= 3 * self.quarter;
-        let mut positions = [0u32; 4];
-        let mut weights = [T::ZERO; 4];
-        if all {
+        if self.phase >= 3 * self.quarter {
+            let mut positions = [0u32; 4];
+            let mut weights = [T::ZERO; 4];
             for k in 0..4u32 {
                 let i = (self.phase - k * self.quarter) % self.width;
                 positions[k as usize] = i;
@@ -120,28 +131,22 @@ impl<T: Real, const P: usize> TestRows<T, P> {
                 *s2 += w2 * t;
                 *s3 += w3 * t;
             }
-        }
-        for k in 0..4u32 {
-            let start = k * self.quarter;
-            if self.phase < start {
-                continue;
+            for (j, (i, w)) in positions.into_iter().zip(weights).enumerate() {
+                self.add_target(j, i, w * y, &mut emit);
             }
-            let j = k as usize;
-            let (i, w) = if all {
-                (positions[j], weights[j])
-            } else {
+        } else {
+            for k in 0..4u32 {
+                let start = k * self.quarter;
+                if self.phase < start {
+                    continue;
+                }
+                let j = k as usize;
                 let i = (self.phase - start) % self.width;
                 let w = self.weight(i);
                 for (s, t) in self.columns[j][..n].iter_mut().zip(theta[..n].iter()) {
                     *s += w * *t;
                 }
-                (i, w)
-            };
-            self.targets[j] += w * y;
-            if i + 1 == self.width {
-                emit(&self.columns[j], self.targets[j]);
-                self.columns[j] = [T::ZERO; P];
-                self.targets[j] = T::ZERO;
+                self.add_target(j, i, w * y, &mut emit);
             }
         }
         self.phase = self.phase.wrapping_add(1);

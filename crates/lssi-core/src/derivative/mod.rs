@@ -413,6 +413,27 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
         if total < n || h.is_empty() {
             return T::ZERO;
         }
+        let odd = order == 1;
+        let pairs = n / 2;
+        let sign = if odd { -T::ONE } else { T::ONE };
+        // The window within `b` (most rows, in a ring longer than the window): the general
+        // path below with s0 empty, without its break points.
+        if let Some(s) = b.len().checked_sub(n).map(|k| &b[k..]) {
+            let mut lanes = [T::ZERO; 4];
+            fold_sum(
+                &h[..pairs],
+                &s[..pairs],
+                &s[n - pairs..],
+                sign,
+                0,
+                &mut lanes,
+            );
+            let mut acc = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            if n % 2 == 1 && !odd {
+                acc += h[pairs] * s[pairs];
+            }
+            return acc;
+        }
         // The window as two slices s0 ++ s1 of N samples in all.
         let skip = total - n;
         let (s0, s1) = if skip >= a.len() {
@@ -421,22 +442,23 @@ impl<T: Real, const W: usize> FoldedTaps<T, W> {
             (&a[skip..], b)
         };
         let m = s0.len();
-        let odd = order == 1;
-        let pairs = n / 2;
         // Pair k takes s[k] and s[N−1−k]: s[k] lies in s0 for k < m, s[N−1−k] in s1 for
         // k < N−m. Between the two break points both lie in the same slice.
         let e1 = m.min(n - m).min(pairs);
         let e2 = m.max(n - m).min(pairs);
-        let sign = if odd { -T::ONE } else { T::ONE };
         let mut lanes = [T::ZERO; 4];
-        fold_sum(
-            &h[..e1],
-            &s0[..e1],
-            &s1[n - m - e1..n - m],
-            sign,
-            0,
-            &mut lanes,
-        );
+        // Where the window does not wrap (s0 empty: most rows, in a ring longer than the
+        // window) there are no pairs across the break: skip the call.
+        if e1 > 0 {
+            fold_sum(
+                &h[..e1],
+                &s0[..e1],
+                &s1[n - m - e1..n - m],
+                sign,
+                0,
+                &mut lanes,
+            );
+        }
         if m <= n - m {
             fold_sum(
                 &h[e1..e2],

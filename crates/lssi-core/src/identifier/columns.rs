@@ -87,10 +87,7 @@ impl<T: Real, const P: usize> Columns<T, P> {
         c1: T,
         theta: &mut [T; P],
     ) -> T {
-        library.evaluate_sin_cos(r.x, r.v, s1, c1, r.u, theta);
-        for (t, s) in theta.iter_mut().zip(self.inverse_scales.iter()) {
-            *t *= *s;
-        }
+        library.evaluate_scaled((r.x, r.v, s1, c1, r.u), &self.inverse_scales, theta);
         r.y / self.y_scale
     }
 

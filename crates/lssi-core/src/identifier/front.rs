@@ -112,6 +112,11 @@ impl<T: Real, const W: usize, const C: usize> Front<T, W, C> {
         // the M4F. The same products summed in the same order as before.
         let d4 = |buffer: &HistoryBuf<T, W>| {
             let (older, newer) = buffer.as_slices();
+            // Almost always the five lie in the newer slice: read them straight (no zeroed
+            // array, no branch per sample).
+            if let Some(&[r4, r3, r2, r1, r0]) = newer.last_chunk::<5>() {
+                return fourth_difference([r0, r1, r2, r3, r4]);
+            }
             let mut recent = [T::ZERO; 5];
             for (k, r) in recent.iter_mut().enumerate() {
                 *r = if k < newer.len() {
@@ -122,14 +127,7 @@ impl<T: Real, const W: usize, const C: usize> Front<T, W, C> {
                     T::ZERO
                 };
             }
-            let (one, four, six) = (T::ONE, T::from_f64(4.0), T::from_f64(6.0));
-            let mut d = T::ZERO;
-            d += one * recent[0];
-            d += -four * recent[1];
-            d += six * recent[2];
-            d += -four * recent[3];
-            d += one * recent[4];
-            d * d
+            fourth_difference(recent)
         };
         let dv = if velocity {
             d4(&self.rings[V_RING])
@@ -138,6 +136,19 @@ impl<T: Real, const W: usize, const C: usize> Front<T, W, C> {
         };
         (d4(&self.rings[0]), dv)
     }
+}
+
+/// The squared fourth difference of five samples, newest first.
+#[inline(always)]
+fn fourth_difference<T: Real>(recent: [T; 5]) -> T {
+    let (one, four, six) = (T::ONE, T::from_f64(4.0), T::from_f64(6.0));
+    let mut d = T::ZERO;
+    d += one * recent[0];
+    d += -four * recent[1];
+    d += six * recent[2];
+    d += -four * recent[3];
+    d += one * recent[4];
+    d * d
 }
 
 #[cfg(test)]
@@ -207,5 +218,34 @@ mod tests {
         // The alternating noise on v shows in its fourth differences (16² each).
         assert!((e.v - 7.0).abs() < 0.5, "{e:?}");
         assert_eq!(f.fourth_differences(true).1, 256.0);
+    }
+
+    /// Wherever the ring wraps (the five newest samples in its newer slice, or split across
+    /// both), the fourth differences are those of the five newest samples, bit for bit, and
+    /// 0 stands in for samples not written yet.
+    #[test]
+    fn fourth_differences_read_the_newest_samples_at_every_wrap() {
+        let channels = Channels {
+            velocity: true,
+            input: false,
+        };
+        let mut f = front(channels);
+        let value = |i: i32| (0.37 * f64::from(i)).sin() + 0.01 * f64::from(i * i % 7);
+        for i in 0..200 {
+            f.write(&Sample {
+                t: f64::from(i) * 0.01,
+                x: value(i),
+                v: Some(value(i + 3)),
+                u: None,
+            });
+            let recent = |shift: i32| {
+                core::array::from_fn(|k| {
+                    let j = i - k as i32;
+                    if j >= 0 { value(j + shift) } else { 0.0 }
+                })
+            };
+            let expected = (fourth_difference(recent(0)), fourth_difference(recent(3)));
+            assert_eq!(f.fourth_differences(true), expected, "{i}");
+        }
     }
 }
