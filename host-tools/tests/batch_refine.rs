@@ -81,21 +81,9 @@ fn many_recordings_give_one_line_each_in_order_with_errors_in_their_rows() {
 fn a_batch_withholds_a_model_that_fails_the_gate_and_names_it() {
     let dir = tempfile::tempdir().unwrap();
     let a = generate(dir.path(), "a.csv", &["--seed", "1"]);
-    // White noise (a 64-bit LCG through Box–Muller): no deterministic dynamics.
+    // White noise (seeded, Gaussian): no deterministic dynamics.
     let noise = dir.path().join("noise.csv");
-    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-    let mut uniform = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    let mut text = String::from("t,x\n");
-    for i in 0..20_000 {
-        let (p, q) = (uniform(), uniform());
-        let g = (-2.0 * p.ln()).sqrt() * (2.0 * std::f64::consts::PI * q).cos();
-        text.push_str(&format!("{},{:e}\n", i as f64 * 0.0005, 1e-3 * g));
-    }
+    let text = lssi_testkit::Noise::new(1).white_noise_csv(20_000, 0.0005, 1e-3);
     std::fs::write(&noise, text).unwrap();
     let out = lssi(&["identify", &a, arg(&noise), "--json"]);
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -323,19 +323,7 @@ fn a_streamed_file_has_its_spikes_repaired_and_named() {
 fn a_streamed_noise_file_fails_the_quality_gate() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("noise.csv");
-    let mut state = 0x2545_F491_4F6C_DD1D_u64;
-    let mut uniform = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    let mut text = String::from("t,x\n");
-    for i in 0..40_000 {
-        let (p, q) = (uniform(), uniform());
-        let g = (-2.0 * p.ln()).sqrt() * (2.0 * std::f64::consts::PI * q).cos();
-        text.push_str(&format!("{},{:e}\n", i as f64 * 0.0005, 1e-3 * g));
-    }
+    let text = lssi_testkit::Noise::new(2).white_noise_csv(40_000, 0.0005, 1e-3);
     std::fs::write(&path, text).unwrap();
     // An excerpt of 2^15 rows (16 s) of the 40,000: on 2^13 rows (4 s) this noise passes the
     // gate in memory too (the held-out check needs a longer record), and the default

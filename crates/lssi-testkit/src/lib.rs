@@ -73,6 +73,17 @@ impl Noise {
         r * a.cos()
     }
 
+    /// A recording of white Gaussian noise of RMS `sigma` as CSV text (header `t,x`), `rows`
+    /// samples `dt` apart: a signal with no deterministic dynamics, which a quality gate
+    /// must refuse.
+    pub fn white_noise_csv(&mut self, rows: usize, dt: f64, sigma: f64) -> String {
+        let mut text = String::from("t,x\n");
+        for i in 0..rows {
+            text.push_str(&format!("{},{:e}\n", i as f64 * dt, sigma * self.gauss()));
+        }
+        text
+    }
+
     /// Adds zero-mean Gaussian noise of RMS `delta`·RMS(`values`) to `values`.
     pub fn add_relative(&mut self, values: &mut [f64], delta: f64) {
         let n = values.len().max(1) as f64;
@@ -86,6 +97,20 @@ impl Noise {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn white_noise_csv_has_the_rows_and_the_level_asked_for() {
+        let text = Noise::new(3).white_noise_csv(4000, 0.001, 0.5);
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,x"));
+        let x: Vec<f64> = lines
+            .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(x.len(), 4000);
+        let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
+        assert!((rms - 0.5).abs() < 0.03, "{rms}");
+        assert_eq!(text, Noise::new(3).white_noise_csv(4000, 0.001, 0.5));
+    }
 
     #[test]
     fn gaussian_noise_has_unit_variance_and_zero_mean() {
