@@ -83,30 +83,10 @@ impl<W: Write> Host<W> {
 
 /// x'' = -400 x - 2 x' - 4e4 x³ + 60 cos(15 t), RK4, 1 kHz samples.
 fn duffing(n: usize) -> Vec<(f64, f32)> {
-    let f =
-        |t: f64, x: f64, v: f64| -400.0 * x - 2.0 * v - 4e4 * x * x * x + 60.0 * (15.0 * t).cos();
-    let (mut x, mut v, h) = (0.01, 0.0, 1e-4);
-    let mut out = Vec::new();
-    for i in 0..n {
-        let t0 = i as f64 * 1e-3;
-        out.push((t0, x as f32));
-        for j in 0..10 {
-            let t = t0 + j as f64 * h;
-            let (k1x, k1v) = (v, f(t, x, v));
-            let (k2x, k2v) = (
-                v + 0.5 * h * k1v,
-                f(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v),
-            );
-            let (k3x, k3v) = (
-                v + 0.5 * h * k2v,
-                f(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v),
-            );
-            let (k4x, k4v) = (v + h * k3v, f(t + h, x + h * k3x, v + h * k3v));
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-        }
-    }
-    out
+    lssi_testkit::duffing(n)
+        .into_iter()
+        .map(|p| (p.t, p.x as f32))
+        .collect()
 }
 
 fn config() -> Config {

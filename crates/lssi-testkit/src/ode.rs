@@ -1,7 +1,7 @@
 //! Fixed-step integration of a second-order ODE x'' = f(t, x, x'), for the data generators.
 //!
-//! The same integrator as the host's generators (`lssi_host::ode`), step for step: classical
-//! fourth-order Runge–Kutta with a small fixed step, exactly reproducible.
+//! The host's generators (`lssi gen`, `lssi_host::synth::ode`) use this integrator too:
+//! classical fourth-order Runge–Kutta with a small fixed step, exactly reproducible.
 //!
 //! ```
 //! use lssi_testkit::ode::{State, integrate_at};
@@ -92,4 +92,33 @@ where
         t_prev = t_next;
     }
     states
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_cover_the_span() {
+        assert_eq!(steps_for(1.0, 0.1), 10);
+        assert_eq!(steps_for(1.0, 0.3), 4);
+        assert_eq!(steps_for(0.0, 0.1), 1);
+        assert_eq!(steps_for(f64::NAN, 0.1), 1);
+    }
+
+    #[test]
+    fn empty_and_single_time() {
+        let f = |_t: f64, x: f64, _v: f64| -x;
+        let initial = State { x: 1.0, v: 0.0 };
+        assert!(integrate_at(f, initial, &[], 0.1).is_empty());
+        assert_eq!(integrate_at(f, initial, &[3.0], 0.1), vec![initial]);
+    }
+
+    #[test]
+    fn rk4_is_exact_for_constant_acceleration() {
+        // x'' = 2 is a quadratic in t, which RK4 integrates without truncation error.
+        let s = rk4_step(&|_t, _x, _v| 2.0, 0.0, State { x: 1.0, v: 3.0 }, 0.5);
+        assert!((s.x - (1.0 + 1.5 + 0.25)).abs() < 1e-15);
+        assert!((s.v - 4.0).abs() < 1e-15);
+    }
 }
