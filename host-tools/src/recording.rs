@@ -100,61 +100,26 @@ impl Recording {
     /// A few lines describing the recording (what `lssi info` prints): size, time span,
     /// columns, and non-finite values.
     pub fn describe(&self) -> String {
-        let recording = self;
-        let n = recording.len();
-        let first = recording.t.first().copied().unwrap_or(f64::NAN);
-        let last = recording.t.last().copied().unwrap_or(f64::NAN);
-        let mut text = format!(
-            "{}: {n} sample{}, t from {first} to {last} s",
-            recording.path.display(),
-            if n == 1 { "" } else { "s" }
-        );
-        if n > 1 {
-            text.push_str(&format!(
-                " (mean interval {} s)",
-                (last - first) / (n - 1) as f64
-            ));
-        }
-        text.push('\n');
-
-        let c = &recording.columns;
-        let optional = |name: &Option<String>| match name {
-            Some(name) => format!("'{name}'"),
-            None => "absent".to_owned(),
+        let non_finite = |values: Option<&Vec<f64>>| {
+            values.map_or(0, |values| values.iter().filter(|v| !v.is_finite()).count())
         };
-        text.push_str(&format!(
-            "columns: t = '{}', x = '{}', v = {}, u = {}\n",
-            c.t,
-            c.x,
-            optional(&c.v),
-            optional(&c.u)
-        ));
-
-        let non_finite = |values: &[f64]| values.iter().filter(|v| !v.is_finite()).count();
-        let mut counts = vec![
-            ("t", non_finite(&recording.t)),
-            ("x", non_finite(&recording.x)),
-        ];
-        if let Some(v) = &recording.v {
-            counts.push(("v", non_finite(v)));
+        Summary {
+            path: &self.path,
+            columns: &self.columns,
+            samples: self.len(),
+            first: self.t.first().copied().unwrap_or(f64::NAN),
+            last: self.t.last().copied().unwrap_or(f64::NAN),
+            non_finite: [
+                non_finite(Some(&self.t)),
+                non_finite(Some(&self.x)),
+                non_finite(self.v.as_ref()),
+                non_finite(self.u.as_ref()),
+            ],
+            has_v: self.v.is_some(),
+            has_u: self.u.is_some(),
+            backwards: self.t.windows(2).filter(|w| w[1] <= w[0]).count(),
         }
-        if let Some(u) = &recording.u {
-            counts.push(("u", non_finite(u)));
-        }
-        let counts: Vec<String> = counts
-            .iter()
-            .map(|(name, count)| format!("{name} {count}"))
-            .collect();
-        text.push_str(&format!("non-finite values: {}\n", counts.join(", ")));
-
-        let backwards = recording.t.windows(2).filter(|w| w[1] <= w[0]).count();
-        if backwards > 0 {
-            text.push_str(&format!(
-                "warning: t fails to increase at {backwards} row{}\n",
-                if backwards == 1 { "" } else { "s" }
-            ));
-        }
-        text
+        .render()
     }
 
     /// Reads the CSV file at `path`; see [`parse_csv`].
@@ -693,6 +658,78 @@ pub fn write_csv(path: impl AsRef<Path>, header: &[&str], columns: &[&[f64]]) ->
     writer.flush()
 }
 
+/// What `lssi info` says of a recording, counted in one pass over it: in memory
+/// ([`Recording::describe`]) or streamed (`identify::stream::describe_file`).
+pub struct Summary<'a> {
+    /// The file.
+    pub path: &'a Path,
+    /// Its columns, as resolved.
+    pub columns: &'a ColumnNames,
+    /// Rows read.
+    pub samples: usize,
+    /// The first time.
+    pub first: f64,
+    /// The last time.
+    pub last: f64,
+    /// Non-finite values of t, x, v and u.
+    pub non_finite: [usize; 4],
+    /// Whether v is in the recording.
+    pub has_v: bool,
+    /// Whether u is in the recording.
+    pub has_u: bool,
+    /// Rows whose time does not increase.
+    pub backwards: usize,
+}
+
+impl Summary<'_> {
+    /// The lines `lssi info` prints.
+    pub fn render(&self) -> String {
+        let (n, first, last) = (self.samples, self.first, self.last);
+        let mut text = format!(
+            "{}: {n} sample{}, t from {first} to {last} s",
+            self.path.display(),
+            if n == 1 { "" } else { "s" }
+        );
+        if n > 1 {
+            text.push_str(&format!(
+                " (mean interval {} s)",
+                (last - first) / (n - 1) as f64
+            ));
+        }
+        text.push('\n');
+        let c = self.columns;
+        let optional = |name: &Option<String>| match name {
+            Some(name) => format!("'{name}'"),
+            None => "absent".to_owned(),
+        };
+        text.push_str(&format!(
+            "columns: t = '{}', x = '{}', v = {}, u = {}\n",
+            c.t,
+            c.x,
+            optional(&c.v),
+            optional(&c.u)
+        ));
+        let mut counts = vec![
+            format!("t {}", self.non_finite[0]),
+            format!("x {}", self.non_finite[1]),
+        ];
+        if self.has_v {
+            counts.push(format!("v {}", self.non_finite[2]));
+        }
+        if self.has_u {
+            counts.push(format!("u {}", self.non_finite[3]));
+        }
+        text.push_str(&format!("non-finite values: {}\n", counts.join(", ")));
+        if self.backwards > 0 {
+            text.push_str(&format!(
+                "warning: t fails to increase at {} row{}\n",
+                self.backwards,
+                if self.backwards == 1 { "" } else { "s" }
+            ));
+        }
+        text
+    }
+}
 #[cfg(test)]
 mod tests {
     use super::*;

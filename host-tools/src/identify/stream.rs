@@ -959,47 +959,19 @@ pub fn describe_file(
             path: csv.path.clone(),
         });
     }
-    let mut text = format!(
-        "{}: {n} sample{}, t from {first} to {last} s",
-        csv.path.display(),
-        if n == 1 { "" } else { "s" }
-    );
-    if n > 1 {
-        text.push_str(&format!(
-            " (mean interval {} s)",
-            (last - first) / (n - 1) as f64
-        ));
-    }
-    text.push('\n');
     let c = csv.columns();
-    let optional = |name: &Option<String>| match name {
-        Some(name) => format!("'{name}'"),
-        None => "absent".to_owned(),
-    };
-    text.push_str(&format!(
-        "columns: t = '{}', x = '{}', v = {}, u = {}\n",
-        c.t,
-        c.x,
-        optional(&c.v),
-        optional(&c.u)
-    ));
-    let mut counts = vec![
-        format!("t {}", non_finite[0]),
-        format!("x {}", non_finite[1]),
-    ];
-    if c.v.is_some() {
-        counts.push(format!("v {}", non_finite[2]));
+    let text = crate::recording::Summary {
+        path: &csv.path,
+        columns: c,
+        samples: n,
+        first,
+        last,
+        non_finite,
+        has_v: c.v.is_some(),
+        has_u: c.u.is_some(),
+        backwards,
     }
-    if c.u.is_some() {
-        counts.push(format!("u {}", non_finite[3]));
-    }
-    text.push_str(&format!("non-finite values: {}\n", counts.join(", ")));
-    if backwards > 0 {
-        text.push_str(&format!(
-            "warning: t fails to increase at {backwards} row{}\n",
-            if backwards == 1 { "" } else { "s" }
-        ));
-    }
+    .render();
     Ok(text)
 }
 
