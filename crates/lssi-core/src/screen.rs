@@ -15,7 +15,7 @@
 //! sparsest whose held-out error is within `parsimony` (5 %) of the least; among equally
 //! sparse ones, the least error. The final coefficients are solved on A and B together.
 
-use crate::factor::Factor;
+use crate::factor::{Factor, FactorRef};
 use crate::model::{MAX_SOLUTIONS, Solution};
 use crate::real::Real;
 
@@ -281,8 +281,8 @@ fn stlsq<T: Real, const P: usize>(
 
 /// Held-out mean error of a support: A's fit tested on B and B's on A.
 fn held_out<T: Real, const P: usize>(
-    a: &Factor<T, P>,
-    b: &Factor<T, P>,
+    a: FactorRef<'_, T, P>,
+    b: FactorRef<'_, T, P>,
     support: u32,
     work: &mut [[T; P]; P],
 ) -> T {
@@ -309,8 +309,8 @@ fn held_out<T: Real, const P: usize>(
 /// number of logarithmic thresholds, `parsimony` the near-tie tolerance; `work` is scratch
 /// for the solves.
 pub(crate) fn sweep<T: Real, const P: usize>(
-    a: &Factor<T, P>,
-    b: &Factor<T, P>,
+    a: FactorRef<'_, T, P>,
+    b: FactorRef<'_, T, P>,
     all: &Factor<T, P>,
     work: &mut [[T; P]; P],
     grid: usize,

@@ -91,6 +91,37 @@ impl<T: Real, const P: usize> Factor<T, P> {
         }
     }
 
+    /// Read access, as the screening's functions take every factor (see [`FactorRef`]).
+    #[inline]
+    pub fn view(&self) -> FactorRef<'_, T, P> {
+        FactorRef {
+            n: self.n,
+            r: &self.r,
+            flipped: None,
+            z: &self.z,
+            rho2: self.rho2,
+            weight: self.weight,
+        }
+    }
+
+    /// Write access (see [`FactorMut`]); the factor owns its whole matrix.
+    #[inline]
+    pub fn view_mut(&mut self) -> FactorMut<'_, T, P> {
+        FactorMut {
+            n: self.n,
+            r: &mut self.r,
+            layout: Layout::Whole,
+            z: &mut self.z,
+            rho2: &mut self.rho2,
+            weight: &mut self.weight,
+        }
+    }
+
+    /// Sets the number of columns of an empty factor (clamped to `P`).
+    pub fn set_columns(&mut self, n: usize) {
+        self.n = n.min(P);
+    }
+
     /// Number of columns.
     pub fn columns(&self) -> usize {
         self.n
@@ -121,94 +152,39 @@ impl<T: Real, const P: usize> Factor<T, P> {
 
     /// Forgets by `sqrt_lambda` (√λ) and folds in one row θ with target y.
     pub fn update(&mut self, row: &[T], y: T, sqrt_lambda: T) {
-        let n = self.n.min(row.len());
-        self.forget(sqrt_lambda);
-        let mut a = [T::ZERO; P];
-        a[..n].copy_from_slice(&row[..n]);
-        let mut b = y;
-        for i in 0..n {
-            if a[i] == T::ZERO {
-                continue;
-            }
-            let g = givens(self.r[i][i], a[i]);
-            self.r[i][i] = g.r;
-            let (ri, ai) = (&mut self.r[i][i + 1..n], &mut a[i + 1..n]);
-            for (rij, aj) in ri.iter_mut().zip(ai.iter_mut()) {
-                (*rij, *aj) = g.apply(*rij, *aj);
-            }
-            (self.z[i], b) = g.apply(self.z[i], b);
-        }
-        self.rho2 += b * b;
-        self.weight += T::ONE;
+        self.view_mut().update(row, y, sqrt_lambda);
     }
 
     /// Ages everything by `sqrt_lambda` (√λ per row, raised to the rows elapsed).
     pub fn forget(&mut self, sqrt_lambda: T) {
-        if sqrt_lambda == T::ONE {
-            return;
-        }
-        for i in 0..self.n {
-            for v in &mut self.r[i][i..self.n] {
-                *v *= sqrt_lambda;
-            }
-            self.z[i] *= sqrt_lambda;
-        }
-        let lambda = sqrt_lambda * sqrt_lambda;
-        self.rho2 *= lambda;
-        self.weight *= lambda;
+        self.view_mut().forget(sqrt_lambda);
     }
 
-    /// Empties the factor (same columns).
+    /// Empties the factor (same columns), in place (a new factor would be built on the stack
+    /// first).
     pub fn clear(&mut self) {
-        *self = Self::new(self.n);
+        for row in self.r.iter_mut() {
+            row.fill(T::ZERO);
+        }
+        self.z.fill(T::ZERO);
+        self.rho2 = T::ZERO;
+        self.weight = T::ZERO;
     }
 
     /// Folds in everything another factor over the same columns holds (no forgetting).
     pub fn merge(&mut self, other: &Self) {
-        let n = self.n.min(other.n);
-        let weight = self.weight + other.weight;
-        for i in 0..n {
-            let z = other.z[i];
-            self.update(&other.r[i][..n], z, T::ONE);
-        }
-        // The rotations added the disagreement between the two fits to ρ²; the other's own
-        // residual energy comes on top. `update` counted R's rows as data rows: fix the weight.
-        self.rho2 += other.rho2;
-        self.weight = weight;
+        self.view_mut().merge(other.view());
     }
 
     /// Multiplies column j by `factors[j]` (a change of the column's units) and z by
     /// `target_factor`.
     pub fn scale(&mut self, factors: &[T], target_factor: T) {
-        let n = self.n.min(factors.len());
-        for i in 0..n {
-            for j in i..n {
-                self.r[i][j] *= factors[j];
-            }
-            self.z[i] *= target_factor;
-        }
-        self.rho2 *= target_factor * target_factor;
+        self.view_mut().scale(factors, target_factor);
     }
 
-    /// Replaces the columns Θ by Θ·B and re-triangularises: R ← qr(R·B).
-    ///
-    /// In place: row i of R·B needs only row i of R (upper triangular), so each row is
-    /// computed into one row of scratch and written back; no P×P temporary is needed (the
-    /// screening calls this in its deepest frames, where the stack peaks).
+    /// Replaces the columns Θ by Θ·B for an upper-triangular B (see [`FactorMut::transform`]).
     pub fn transform(&mut self, b: &[[T; P]; P]) {
-        let n = self.n;
-        let mut row = [T::ZERO; P];
-        for i in 0..n {
-            for j in 0..n {
-                let mut s = T::ZERO;
-                for k in i..n {
-                    s += self.r[i][k] * b[k][j];
-                }
-                row[j] = s;
-            }
-            self.r[i][..n].copy_from_slice(&row[..n]);
-        }
-        triangularise(&mut self.r, &mut self.z, n, n);
+        self.view_mut().transform(b);
     }
 
     /// Makes this factor a copy of `other` without a temporary (same as `*self =
@@ -221,69 +197,61 @@ impl<T: Real, const P: usize> Factor<T, P> {
         self.weight = other.weight;
     }
 
+    /// Makes this factor a copy of the one `other` reads (its columns too).
+    pub fn copy_from_view(&mut self, other: FactorRef<'_, T, P>) {
+        // A factor's entries left of the diagonal are zero (every operation leaves them so):
+        // the rows from the diagonal on are the whole factor.
+        self.n = other.n;
+        self.view_mut().copy_from(other);
+    }
+
     /// Residual energy Σ λ^age (y − θᵀξ)² of a coefficient vector: ‖Rξ − z‖² + ρ².
     pub fn error(&self, coefficients: &[T]) -> T {
-        let n = self.n.min(coefficients.len());
-        let mut e = self.rho2;
-        for i in 0..n {
-            let mut s = -self.z[i];
-            for j in i..n {
-                s += self.r[i][j] * coefficients[j];
-            }
-            e += s * s;
-        }
-        e
+        self.view().error(coefficients)
     }
 
     /// Column norms ‖θ_j‖ (weighted), from R.
     pub fn column_norms(&self, out: &mut [T]) {
-        let n = self.n.min(out.len());
-        for (j, o) in out.iter_mut().enumerate().take(n) {
-            let mut s = T::ZERO;
-            for i in 0..=j {
-                s += self.r[i][j] * self.r[i][j];
-            }
-            *o = s.sqrt();
-        }
+        self.view().column_norms(out);
     }
 
     /// The target's norm ‖y‖ (weighted): √(‖z‖² + ρ²).
     pub fn target_norm(&self) -> T {
-        let mut s = self.rho2;
-        for v in &self.z[..self.n] {
-            s += *v * *v;
-        }
-        s.sqrt()
+        self.view().target_norm()
     }
 
     /// Entry (i, j) of the Gram matrix RᵀR = Σ λ^age θθᵀ (0 outside the columns).
     pub fn gram(&self, i: usize, j: usize) -> T {
-        if i >= self.n || j >= self.n {
-            return T::ZERO;
-        }
-        let mut s = T::ZERO;
-        for row in &self.r[..=i.min(j)] {
-            s += row[i] * row[j];
-        }
-        s
+        self.view().gram(i, j)
     }
 
     /// Entry i of Rᵀz = Σ λ^age θ y (0 outside the columns).
     pub fn moment(&self, i: usize) -> T {
-        if i >= self.n {
-            return T::ZERO;
-        }
-        let mut s = T::ZERO;
-        for (row, z) in self.r[..=i].iter().zip(self.z.iter()) {
-            s += row[i] * *z;
-        }
-        s
+        self.view().moment(i)
+    }
+
+    /// Least-squares coefficients on the columns in `support` (bit j = column j); the others
+    /// are set to zero. A column that is numerically dependent on the earlier kept ones is
+    /// dropped from the support (its coefficient is zero). Returns the support actually used.
+    pub fn solve(&self, support: u32, out: &mut [T]) -> u32 {
+        let mut work = [[T::ZERO; P]; P];
+        self.view().solve_in(support, out, &mut work)
+    }
+
+    /// [`Factor::solve`] with the caller's P×P scratch matrix (see [`FactorRef::solve_in`]).
+    pub fn solve_in(&self, support: u32, out: &mut [T], work: &mut [[T; P]; P]) -> u32 {
+        self.view().solve_in(support, out, work)
     }
 }
 
 mod correct;
+mod pair;
 mod solve;
+mod view;
 
+pub use pair::FactorPair;
 use solve::triangularise;
+use view::Layout;
+pub use view::{FactorMut, FactorRef};
 #[cfg(test)]
 mod tests;

@@ -6,7 +6,7 @@
 //! an odd one to B ([`Halves::goes_to_a`]).
 
 use super::{Row, WARMUP_ROWS};
-use crate::factor::Factor;
+use crate::factor::{Factor, FactorPair};
 use crate::real::Real;
 use crate::weak::TestRows;
 
@@ -15,11 +15,12 @@ pub(super) const TEST_BLOCK: u64 = 8;
 
 /// The two halves A and B of the data, or, until the column scales are known, the warm-up
 /// rows. The halves are empty while rows wait in the warm-up buffer, so the two share their
-/// memory (the buffer's 1.5 KB of RAM on the M4F with P = 16).
+/// memory (the buffer's 1.5 KB of RAM on the M4F with P = 16). A and B are one
+/// [`FactorPair`]: two triangles in about one square.
 #[derive(Clone)]
 pub(super) enum Store<T, const P: usize> {
     Warmup(heapless::Vec<Row<T>, WARMUP_ROWS>),
-    Halves(Factor<T, P>, Factor<T, P>),
+    Halves(FactorPair<T, P>),
 }
 
 /// What gathers the rows before they reach A or B. The two never coexist, so the sums take
@@ -122,11 +123,12 @@ impl<T: Real, const P: usize> Halves<T, P> {
     /// Ends the warm-up: the halves, empty, take the warm-up's memory; returns its rows.
     #[inline(always)]
     pub(super) fn end_warmup(&mut self, n: usize) -> heapless::Vec<Row<T>, WARMUP_ROWS> {
-        let empty = Store::Halves(Factor::new(n), Factor::new(n));
-        match core::mem::replace(&mut self.store, empty) {
-            Store::Warmup(rows) => rows,
+        let rows = match &mut self.store {
+            Store::Warmup(rows) => core::mem::take(rows),
             Store::Halves(..) => heapless::Vec::new(),
-        }
+        };
+        self.store = Store::Halves(FactorPair::new(n));
+        rows
     }
 
     /// Folds a scaled row (the first `n` entries of `theta`, target `y`) into A or B.
@@ -140,7 +142,7 @@ impl<T: Real, const P: usize> Halves<T, P> {
             sqrt_lambda,
             sqrt_lambda_blocks,
         } = self;
-        let Store::Halves(a, b) = store else {
+        let Store::Halves(pair) = store else {
             // Rows reach the collector only after the warm-up, so the halves exist.
             return;
         };
@@ -157,9 +159,9 @@ impl<T: Real, const P: usize> Halves<T, P> {
                 if regression_rows.is_multiple_of(block_len) {
                     // The block's last row decides.
                     let to_a = Self::goes_to_a(*regression_rows - 1, block_len);
-                    let factor = if to_a { a } else { b };
+                    let mut factor = pair.half_mut(to_a);
                     factor.forget(sqrt_lambda_blocks);
-                    factor.merge(block);
+                    factor.merge(block.view());
                     block.clear();
                 }
             }
@@ -168,7 +170,7 @@ impl<T: Real, const P: usize> Halves<T, P> {
             Collector::Sums(sums) => {
                 sums.push(theta, y, n, |sum, target| {
                     let to_a = Self::goes_to_a(*regression_rows, block_len);
-                    let factor = if to_a { &mut *a } else { &mut *b };
+                    let mut factor = pair.half_mut(to_a);
                     if regression_rows.is_multiple_of(block_len) {
                         factor.forget(sqrt_lambda_blocks);
                     }
@@ -193,7 +195,7 @@ impl<T: Real, const P: usize> Halves<T, P> {
     /// The weights the two halves A and B have with the block in progress merged in.
     pub(super) fn weights(&self) -> (T, T) {
         let (mut a, mut b) = match &self.store {
-            Store::Halves(a, b) => (a.weight(), b.weight()),
+            Store::Halves(pair) => (pair.a().weight(), pair.b().weight()),
             Store::Warmup(_) => (T::ZERO, T::ZERO),
         };
         if let Some((block, to_a)) = self.open_block() {
@@ -206,20 +208,14 @@ impl<T: Real, const P: usize> Halves<T, P> {
         (a, b)
     }
 
-    /// Copies A and B, with the block in progress merged in, into `a` and `b`.
-    pub(super) fn copy_into(&self, a: &mut Factor<T, P>, b: &mut Factor<T, P>) {
+    /// Copies A and B, with the block in progress merged in, into `pair`.
+    pub(super) fn copy_into(&self, pair: &mut FactorPair<T, P>) {
         match &self.store {
-            Store::Halves(sa, sb) => {
-                a.copy_from(sa);
-                b.copy_from(sb);
-            }
-            Store::Warmup(_) => {
-                a.clear();
-                b.clear();
-            }
+            Store::Halves(stored) => pair.copy_from(stored),
+            Store::Warmup(_) => pair.clear(),
         }
         if let Some((block, to_a)) = self.open_block() {
-            if to_a { a.merge(block) } else { b.merge(block) }
+            pair.half_mut(to_a).merge(block.view());
         }
     }
 }
@@ -260,17 +256,19 @@ mod tests {
         let h = filled(3 * 16 + 5, 0);
         let (a, b) = h.weights();
         assert_eq!((a, b), (32.0, 21.0));
-        let (mut fa, mut fb) = (Factor::new(4), Factor::new(4));
-        h.copy_into(&mut fa, &mut fb);
-        assert_eq!((fa.weight(), fb.weight()), (32.0, 21.0));
+        let mut pair = FactorPair::new(4);
+        h.copy_into(&mut pair);
+        assert_eq!((pair.a().weight(), pair.b().weight()), (32.0, 21.0));
     }
 
     #[test]
     fn the_halves_together_are_all_the_rows() {
         let h = filled(100, 0);
-        let (mut fa, mut fb) = (Factor::new(4), Factor::new(4));
-        h.copy_into(&mut fa, &mut fb);
-        fa.merge(&fb);
+        let mut pair = FactorPair::new(4);
+        h.copy_into(&mut pair);
+        let mut fa = Factor::new(4);
+        fa.copy_from_view(pair.a());
+        fa.view_mut().merge(pair.b());
         let mut all = Factor::<f64, 4>::new(4);
         for i in 0..100 {
             let (theta, y) = row(i);

@@ -144,14 +144,16 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     }
 
     /// Residual energy of A and B together, at x origin `at`, of the least-squares model on
-    /// `support`; `w.all` holds the union at x's own origin, `w.a` is the scratch.
+    /// `support`; `w.all` holds the union at x's own origin, A of `w.ab` is the scratch.
     pub(super) fn origin_rss(&self, at: T, support: u32, w: &mut Work<T, P>) -> T {
         self.shift_into(at, T::ZERO, &mut w.m);
-        w.a.copy_from(&w.all);
-        w.a.transform(&w.m);
+        let mut scratch = w.ab.a_mut();
+        scratch.copy_from(w.all.view());
+        scratch.transform(&w.m);
         let mut xi = [T::ZERO; P];
-        w.a.solve_in(support, &mut xi, &mut w.m);
-        w.a.error(&xi)
+        let scratch = w.ab.a();
+        scratch.solve_in(support, &mut xi, &mut w.m);
+        scratch.error(&xi)
     }
 
     /// The origin near `c` at which the model on `support` fits best (least residual energy

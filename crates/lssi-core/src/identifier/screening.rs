@@ -16,19 +16,19 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// origin, about 2 % of a sweep.
     #[inline(never)]
     pub(super) fn prepare(&self, offset_v: T, c: T, halves: bool, w: &mut Work<T, P>) {
-        self.halves.copy_into(&mut w.a, &mut w.b);
+        self.halves.copy_into(&mut w.ab);
         if offset_v != T::ZERO {
             self.shift_into(T::ZERO, offset_v, &mut w.m);
-            w.a.transform(&w.m);
-            w.b.transform(&w.m);
+            w.ab.a_mut().transform(&w.m);
+            w.ab.b_mut().transform(&w.m);
         }
-        w.all.copy_from(&w.a);
-        w.all.merge(&w.b);
+        w.all.copy_from_view(w.ab.a());
+        w.all.view_mut().merge(w.ab.b());
         if c != T::ZERO {
             self.shift_into(c, T::ZERO, &mut w.m);
             if halves {
-                w.a.transform(&w.m);
-                w.b.transform(&w.m);
+                w.ab.a_mut().transform(&w.m);
+                w.ab.b_mut().transform(&w.m);
             }
             w.all.transform(&w.m);
         }
@@ -38,8 +38,13 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             let noise = self.row_noise();
             let terms = self.library.terms();
             if halves {
-                eiv::correct(&mut w.a, terms, &noise, &mut w.m);
-                eiv::correct(&mut w.b, terms, &noise, &mut w.m);
+                for a in [true, false] {
+                    // Through a whole factor: the correction writes R in place.
+                    let mut half = Factor::new(w.all.columns());
+                    half.copy_from_view(if a { w.ab.a() } else { w.ab.b() });
+                    eiv::correct(&mut half, terms, &noise, &mut w.m);
+                    w.ab.half_mut(a).copy_from(half.view());
+                }
             }
             eiv::correct(&mut w.all, terms, &noise, &mut w.m);
         }
@@ -358,7 +363,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         self.prepare(search.offset_v, c, true, w);
         // The column map is spent once the factors are moved: it is the solves' scratch.
         let (grid, parsimony) = (search.grid, search.parsimony);
-        screen::sweep(&w.a, &w.b, &w.all, &mut w.m, grid, parsimony, out);
+        screen::sweep(w.ab.a(), w.ab.b(), &w.all, &mut w.m, grid, parsimony, out);
     }
 }
 
