@@ -11,8 +11,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// The screening rebuilds them from the identifier's state for each origin it tries
     /// instead of keeping an unshifted copy besides the shifted one: the operations are the
     /// same, in the same order, so the factors are bit for bit those of a copy, and the
-    /// stack holds three factors and one matrix instead of seven factors and four matrices
-    /// (20 KB on the M4F with P = 16). The cost is a merge and up to five transforms per
+    /// stack holds A and B as one pair, the union and one matrix instead of seven factors and
+    /// four matrices (20 KB on the M4F with P = 16). The cost is a merge and up to five transforms per
     /// origin, about 2 % of a sweep.
     #[inline(never)]
     pub(super) fn prepare(&self, offset_v: T, c: T, halves: bool, w: &mut Work<T, P>) {
