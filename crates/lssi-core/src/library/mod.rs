@@ -267,38 +267,10 @@ impl<const P: usize> Library<P> {
     /// [`Library::evaluate`] with the phase given as (sin φ, cos φ): for a caller that
     /// advances the phase by rotation instead of calling sin and cos for every row.
     pub fn evaluate_sin_cos<T: Real>(&self, x: T, v: T, s1: T, c1: T, u: T, row: &mut [T]) {
-        let order = usize::from(self.config.poly_order);
-        // Only the powers up to the order are read (and the harmonics up to theirs): zeroed
-        // (one memset) rather than filled with ones element by element, a loop each in the
-        // size-optimised firmware (about 70 instructions a row on the M4F).
-        let mut xp = [T::ZERO; MAX_POLY_ORDER as usize + 1];
-        let mut vp = [T::ZERO; MAX_POLY_ORDER as usize + 1];
-        (xp[0], vp[0]) = (T::ONE, T::ONE);
-        for i in 1..=order {
-            xp[i] = xp[i - 1] * x;
-            vp[i] = vp[i - 1] * v;
-        }
-        let harmonics = usize::from(self.config.harmonics);
-        let mut sines = [T::ZERO; MAX_HARMONICS as usize + 1];
-        let mut cosines = [T::ZERO; MAX_HARMONICS as usize + 1];
-        cosines[0] = T::ONE;
-        if harmonics > 0 {
-            sines[1] = s1;
-            cosines[1] = c1;
-            let two_c = c1 + c1;
-            for k in 2..=harmonics {
-                sines[k] = two_c * sines[k - 1] - sines[k - 2];
-                cosines[k] = two_c * cosines[k - 1] - cosines[k - 2];
-            }
-        }
-        for (slot, term) in row.iter_mut().zip(self.terms.iter()) {
-            *slot = match *term {
-                Term::Constant => T::ONE,
-                Term::Monomial { px, pv } => xp[usize::from(px)] * vp[usize::from(pv)],
-                Term::Sin(k) => sines[usize::from(k)],
-                Term::Cos(k) => cosines[usize::from(k)],
-                Term::Input => u,
-            };
+        let (left, right) = self.factor_tables((x, v, s1, c1, u));
+        let n = self.terms.len();
+        for (slot, [a, b]) in row.iter_mut().zip(&self.factors[..n]) {
+            *slot = left[usize::from(*a) & (LEFT - 1)] * right[usize::from(*b) & (RIGHT - 1)];
         }
     }
 
@@ -308,10 +280,26 @@ impl<const P: usize> Library<P> {
     #[inline]
     pub fn evaluate_scaled<T: Real>(
         &self,
-        (x, v, s1, c1, u): (T, T, T, T, T),
+        values: (T, T, T, T, T),
         scales: &[T; P],
         row: &mut [T; P],
     ) {
+        let (left, right) = self.factor_tables(values);
+        let n = self.terms.len();
+        for ((slot, [a, b]), d) in row[..n].iter_mut().zip(&self.factors).zip(scales) {
+            *slot = left[usize::from(*a) & (LEFT - 1)] * right[usize::from(*b) & (RIGHT - 1)] * *d;
+        }
+    }
+
+    /// The two tables a row's terms are products of: `left` holds 1, x, x², …, then
+    /// sin kφ and cos kφ (Chebyshev recurrence from sin φ = `s1`, cos φ = `c1`) and u;
+    /// `right` holds 1, v, v², …. Term j is `left[a] · right[b]` for its pair of factors.
+    /// Only the powers up to the order and the harmonics up to theirs are filled.
+    #[inline(always)]
+    fn factor_tables<T: Real>(
+        &self,
+        (x, v, s1, c1, u): (T, T, T, T, T),
+    ) -> ([T; LEFT], [T; RIGHT]) {
         let order = usize::from(self.config.poly_order).min(MAX_POLY_ORDER as usize);
         let mut left = [T::ZERO; LEFT];
         let mut right = [T::ZERO; RIGHT];
@@ -323,7 +311,7 @@ impl<const P: usize> Library<P> {
         let harmonics = usize::from(self.config.harmonics).min(MAX_HARMONICS as usize);
         if harmonics > 0 {
             let (sin, cos) = (usize::from(SIN_AT), usize::from(COS_AT));
-            // sin 0 = 0 and cos 0 = 1 start the recurrence, as in `evaluate_sin_cos`.
+            // sin 0 = 0 and cos 0 = 1 start the recurrence.
             let (mut s0, mut c0) = (T::ZERO, T::ONE);
             let (mut s, mut c) = (s1, c1);
             let two_c = c1 + c1;
@@ -335,10 +323,7 @@ impl<const P: usize> Library<P> {
             }
         }
         left[usize::from(INPUT_AT)] = u;
-        let n = self.terms.len();
-        for ((slot, [a, b]), d) in row[..n].iter_mut().zip(&self.factors).zip(scales) {
-            *slot = left[usize::from(*a) & (LEFT - 1)] * right[usize::from(*b) & (RIGHT - 1)] * *d;
-        }
+        (left, right)
     }
 
     /// Whether every lower monomial a shift of x (and of v) produces is in the library, so
