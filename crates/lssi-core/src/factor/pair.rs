@@ -131,6 +131,7 @@ impl<T: Real, const P: usize> FactorPair<T, P> {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     fn filled<const P: usize>(n: usize, rows: usize, seed: u64) -> Factor<f64, P> {
@@ -146,6 +147,118 @@ mod tests {
             }
             let y = row.iter().sum::<f64>() * 0.5 + row[0] * row[0];
             f.update(&row[..n], y, 0.999);
+        }
+        f
+    }
+
+    /// One operation on a factor, for the random sequences below.
+    #[derive(Clone, Debug)]
+    enum Op {
+        Update(std::vec::Vec<f32>, f32, f32),
+        Forget(f32),
+        Scale(std::vec::Vec<f32>, f32),
+        Shift(f32),
+        MergeOther,
+    }
+
+    fn op(n: usize) -> impl Strategy<Value = Op> {
+        let row = proptest::collection::vec(-3.0f32..3.0, n);
+        prop_oneof![
+            4 => (row.clone(), -3.0f32..3.0, 0.9f32..=1.0).prop_map(|(r, y, l)| Op::Update(r, y, l)),
+            1 => (0.5f32..=1.0).prop_map(Op::Forget),
+            1 => (proptest::collection::vec(0.25f32..4.0, n), 0.25f32..4.0)
+                .prop_map(|(f, t)| Op::Scale(f, t)),
+            1 => (-1.0f32..1.0).prop_map(Op::Shift),
+            1 => Just(Op::MergeOther),
+        ]
+    }
+
+    /// x → x + c on the columns (1, x, x², …): the binomial map, upper triangular.
+    fn shift_map<const P: usize>(n: usize, c: f32) -> [[f32; P]; P] {
+        let mut b = [[0.0f32; P]; P];
+        for j in 0..n {
+            // Column j (x^j) = Σ_i C(j, i) c^(j−i) x^i.
+            let mut binomial = 1.0f32;
+            for i in (0..=j).rev() {
+                b[i][j] = binomial * c.powi((j - i) as i32);
+                binomial = binomial * i as f32 / (j - i + 1) as f32;
+            }
+        }
+        b
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any sequence of operations on A and B of a pair gives what the same sequence gives
+        /// on two whole factors, bit for bit (f32, P = 8, every width).
+        #[test]
+        fn a_pair_is_two_factors_under_any_operations(
+            (n, ops) in (1usize..=8).prop_flat_map(|n| {
+                (Just(n), proptest::collection::vec((proptest::bool::ANY, op(n)), 1..60))
+            }),
+            seed in 0u64..1000,
+        ) {
+            let other = filled_f32::<8>(n, 12, seed + 1);
+            let (mut fa, mut fb) = (Factor::<f32, 8>::new(n), Factor::<f32, 8>::new(n));
+            let mut pair = FactorPair::<f32, 8>::new(n);
+            for (to_a, o) in ops {
+                let (whole, mut half) = if to_a {
+                    (&mut fa, pair.a_mut())
+                } else {
+                    (&mut fb, pair.b_mut())
+                };
+                match o {
+                    Op::Update(r, y, l) => {
+                        whole.update(&r, y, l);
+                        half.update(&r, y, l);
+                    }
+                    Op::Forget(l) => {
+                        whole.forget(l);
+                        half.forget(l);
+                    }
+                    Op::Scale(f, t) => {
+                        whole.scale(&f, t);
+                        half.scale(&f, t);
+                    }
+                    Op::Shift(c) => {
+                        let b = shift_map::<8>(n, c);
+                        whole.transform(&b);
+                        half.transform(&b);
+                    }
+                    Op::MergeOther => {
+                        whole.merge(&other);
+                        half.merge(other.view());
+                    }
+                }
+            }
+            let full = (1u32 << n) - 1;
+            let mut work = [[0.0f32; 8]; 8];
+            for (f, v) in [(&fa, pair.a()), (&fb, pair.b())] {
+                let (mut p, mut q) = ([0.0f32; 8], [0.0f32; 8]);
+                let w = f.view();
+                prop_assert_eq!(w.solve_in(full, &mut p, &mut work), v.solve_in(full, &mut q, &mut work));
+                prop_assert_eq!(p.map(f32::to_bits), q.map(f32::to_bits));
+                prop_assert_eq!(w.error(&p).to_bits(), v.error(&p).to_bits());
+                prop_assert_eq!(w.weight().to_bits(), v.weight().to_bits());
+                for i in 0..n {
+                    for j in 0..n {
+                        prop_assert_eq!(w.gram(i, j).to_bits(), v.gram(i, j).to_bits());
+                    }
+                }
+            }
+        }
+    }
+
+    fn filled_f32<const P: usize>(n: usize, rows: usize, seed: u64) -> Factor<f32, P> {
+        let f64s = filled::<P>(n, rows, seed);
+        let mut f = Factor::new(n);
+        for i in 0..n {
+            let mut row = [0.0f32; P];
+            for (j, v) in f64s.r_row(i).iter().enumerate() {
+                row[j] = *v as f32;
+            }
+            f.update(&row[..n], f64s.z()[i] as f32, 1.0);
         }
         f
     }
