@@ -211,7 +211,7 @@ impl<'a, T: Real, const P: usize> FactorRef<'a, T, P> {
 /// One Givens rotation of a factor's row (`d`, `tail`; z entry `zi`) against the incoming
 /// row `a` (from the same column on) and target `b`; returns the new target.
 #[inline(always)]
-fn rotate_in<T: Real>(d: &mut T, tail: &mut [T], a: &mut [T], zi: &mut T, b: T) -> T {
+pub(super) fn rotate_in<T: Real>(d: &mut T, tail: &mut [T], a: &mut [T], zi: &mut T, b: T) -> T {
     let g = givens(*d, a[0]);
     *d = g.r;
     for (rij, aj) in tail.iter_mut().zip(a[1..].iter_mut()) {
