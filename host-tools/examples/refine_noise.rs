@@ -15,6 +15,7 @@
 use lssi_core::PolyFamily;
 use lssi_host::identify::refine::{self, Chosen, Data};
 use lssi_host::identify::simulate::SimModel;
+use lssi_host::identify::supports::Candidates;
 use lssi_host::identify::{self, Options};
 use lssi_host::synth::eveh::{EvehOptions, Wells, generate_eveh};
 
@@ -106,10 +107,40 @@ fn main() {
                     x: &recording.x,
                     u: None,
                 };
-                let check = refine::refine_and_check(&streaming, &data);
+                let candidates = Candidates::of(&report);
+                let check = refine::refine_and_check_among(&streaming, &candidates, &data);
                 let omega = generated.generated.truth.omega;
                 let s = score(&streaming, &truth, omega);
                 let r = score(&check.model, &truth, omega);
+                if std::env::var_os("LSSI_VERBOSE").is_some() {
+                    let names = |m: &SimModel| -> Vec<String> {
+                        m.terms
+                            .iter()
+                            .filter(|(_, c)| *c != 0.0)
+                            .map(|(t, c)| format!("{}={c:.4}", t.name(omega)))
+                            .collect()
+                    };
+                    println!(
+                        "seed {seed}: truth {truth:?}\n  streaming {:.2} % {:?}\n  refined {:.2} % {:?} ({})",
+                        s.mean,
+                        names(&streaming),
+                        r.mean,
+                        names(&check.model),
+                        check.reason
+                    );
+                    for tried in &check.supports {
+                        let names: Vec<String> = tried
+                            .terms
+                            .iter()
+                            .map(|t| t.name(omega).to_string())
+                            .collect();
+                        let sig = &tried.added_significance;
+                        match tried.held_out {
+                            Some(f) => println!("  {:.5} % {names:?} {sig:.1?}", f.nrmse_percent),
+                            None => println!("  no fit {names:?}"),
+                        }
+                    }
+                }
                 s_all.push(s.mean);
                 r_all.push(r.mean);
                 s_sp += s.spurious;
