@@ -1,7 +1,9 @@
 //! Coefficient error against measurement noise, from x alone, on the harvester of eq. 19
 //! (`lssi gen eveh --observe x --delta D --seed S [--wells monostable]`, 20 s at 2 kHz): the streaming
-//! model (f32, as on a device; `lssi identify --family odd`) and the same support refined on
-//! simulation error (`lssi_host::identify::refine`), over seeds 1–5 at each noise level.
+//! model (f32, as on a device; `lssi identify --family odd`) and the model refined on
+//! simulation error as `lssi identify` refines it (`lssi_host::identify::refine`: the
+//! streaming support and the sweep's solutions one term away from it, the sparsest that
+//! predicts the held-out half as well as the best), over seeds 1–5 at each noise level.
 //!
 //!     cargo run --release -p lssi-host --example refine_noise
 //!
@@ -10,7 +12,10 @@
 //! and the median of |refined − true| ÷ standard error (about 0.67 when the errors are
 //! calibrated: far under it they are inflated, far over it too small).
 //!
-//! `LSSI_DELTAS=0.01,0.02` runs some noise levels, `LSSI_WELLS=bistable` one configuration.
+//! `LSSI_DELTAS=0.01,0.02` runs some noise levels, `LSSI_WELLS=bistable` one configuration,
+//! `LSSI_VERBOSE=1` prints each seed's truth, streaming and refined models, and every support
+//! refined with its held-out simulation error and the significance (|coefficient| ÷ standard
+//! error) of the terms it adds.
 
 use lssi_core::PolyFamily;
 use lssi_host::identify::refine::{self, Chosen, Data};
