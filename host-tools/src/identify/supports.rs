@@ -1,15 +1,18 @@
 //! The supports refinement tries besides the streaming model's, and their starting points.
 //!
 //! At high measurement noise the streaming selection can lose a true term (from x alone at
-//! 10 % noise on the harvester, the damping on two seeds of five: its coefficient is then
-//! 100 % off, and refining the coefficients of the other terms cannot bring it back). The
-//! threshold sweep of the identifier's last screening offers the neighbouring supports
-//! already: its solutions S₁..Sₙ ([`crate::identify::Report::solutions`], the paper's
-//! Table 2). [`Candidates::of`] takes those that differ from the selected support by one term
-//! (one term more or one term less); [`crate::identify::refine::refine_and_check_among`]
-//! refines each on the first half from its equation-error least-squares start
-//! ([`least_squares_start`]) and keeps the sparsest whose held-out simulation error is within
-//! a small tolerance of the best.
+//! 10 % noise on the harvester, the damping on 3 monostable seeds of 5 and 1 bistable: its
+//! coefficient is then 100 % off, and refining the coefficients of the other terms cannot
+//! bring it back). The threshold sweep of the identifier's last screening offers the
+//! neighbouring supports already: its solutions S₁..Sₙ (`lssi_core::Model::solutions`, which
+//! the report keeps as term names, [`crate::identify::Report::solutions`]; they are named
+//! back to library terms here). [`Candidates::of`] takes those that differ from the selected
+//! support by one term, one more or one less, except a term that a shift of the origin the
+//! identifier chose would make (`made_by_the_origin`).
+//! [`crate::identify::refine::refine_and_check_among`] refines each on the first half from
+//! [`least_squares_start`] (the streaming coefficients, and a least-squares fit of an added
+//! term to what they leave) and keeps the sparsest whose held-out simulation error is within
+//! a small tolerance of the best, a term it adds being significant.
 
 use lssi_core::Term;
 use lssi_core::derivative::Design;
