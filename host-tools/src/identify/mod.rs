@@ -16,6 +16,7 @@ pub mod quality;
 pub mod refine;
 pub mod simulate;
 pub mod stream;
+pub mod supports;
 pub mod terms;
 pub mod track;
 
