@@ -92,25 +92,19 @@ fn main() {
                     ..EvehOptions::default()
                 };
                 let generated = generate_eveh(&options);
-                let truth: Vec<(String, f64)> = generated
-                    .generated
-                    .truth
-                    .terms
-                    .iter()
-                    .map(|t| (t.term.clone(), t.coef))
-                    .collect();
+                let truth = generated.generated.truth.named_terms();
                 let recording = generated.to_recording(format!("eveh-{delta}-{seed}"));
                 let id_options = Options {
                     family: PolyFamily::OddFamilies,
+                    f32: true,
                     ..Options::default()
                 };
-                let Ok((config, estimated)) = identify::configure(&recording, &id_options) else {
-                    println!("seed {seed}, δ {delta}: no configuration");
-                    continue;
-                };
-                let Ok(report) = identify::run::<f32>(&recording, config, estimated) else {
-                    println!("seed {seed}, δ {delta}: no model");
-                    continue;
+                let report = match identify::identify_recording(&recording, &id_options) {
+                    Ok(report) => report,
+                    Err(e) => {
+                        println!("seed {seed}, δ {delta}: no model: {e}");
+                        continue;
+                    }
                 };
                 let streaming = SimModel::from_report(&report);
                 let data = Data {

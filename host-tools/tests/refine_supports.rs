@@ -26,20 +26,14 @@ fn the_term_the_streaming_selection_lost_at_10_percent_noise_is_recovered() {
     };
     let generated = generate_eveh(&options);
     let omega = generated.generated.truth.omega;
-    let truth: Vec<(String, f64)> = generated
-        .generated
-        .truth
-        .terms
-        .iter()
-        .map(|t| (t.term.clone(), t.coef))
-        .collect();
+    let truth = generated.generated.truth.named_terms();
     let recording = generated.to_recording("eveh-0.1-1".to_owned());
     let id_options = Options {
         family: PolyFamily::OddFamilies,
+        f32: true,
         ..Options::default()
     };
-    let (config, estimated) = identify::configure(&recording, &id_options).expect("configures");
-    let report = identify::run::<f32>(&recording, config, estimated).expect("identifies");
+    let report = identify::identify_recording(&recording, &id_options).expect("identifies");
     let named = |m: &SimModel| -> Vec<(String, f64)> {
         m.terms
             .iter()

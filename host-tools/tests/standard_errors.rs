@@ -26,20 +26,14 @@ fn errors_in_standard_errors(wells: Wells, delta: f64, seed: u64) -> Vec<f64> {
     };
     let generated = generate_eveh(&options);
     let omega = generated.generated.truth.omega;
-    let truth: Vec<(String, f64)> = generated
-        .generated
-        .truth
-        .terms
-        .iter()
-        .map(|t| (t.term.clone(), t.coef))
-        .collect();
+    let truth = generated.generated.truth.named_terms();
     let recording = generated.to_recording(format!("eveh-{delta}-{seed}"));
     let id_options = Options {
         family: PolyFamily::OddFamilies,
+        f32: true,
         ..Options::default()
     };
-    let (config, estimated) = identify::configure(&recording, &id_options).expect("configures");
-    let report = identify::run::<f32>(&recording, config, estimated).expect("identifies");
+    let report = identify::identify_recording(&recording, &id_options).expect("identifies");
     let streaming = SimModel::from_report(&report);
     let data = Data {
         t: &recording.t,

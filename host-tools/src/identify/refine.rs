@@ -896,13 +896,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         vec![(streaming_shape.terms.clone(), Some(model.clone()))];
     if predictable {
         for support in &candidates.supports {
-            let start = supports::least_squares_start(
-                support,
-                model,
-                &train,
-                candidates.window,
-                candidates.degree,
-            );
+            let start = supports::least_squares_start(support, model, &train, candidates);
             starts.push((support.clone(), start));
         }
     }
@@ -1406,6 +1400,7 @@ mod tests {
             supports: vec![spurious, with.clone()],
             window: 31,
             degree: 4,
+            sample_period: 0.01,
         };
         let check = refine_and_check_among(&lost, &candidates, &data);
         assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -1443,6 +1438,7 @@ mod tests {
             supports: vec![spurious, without],
             window: 31,
             degree: 4,
+            sample_period: 0.01,
         };
         let check = refine_and_check_among(&perturbed(0.03), &candidates, &data);
         assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -1469,6 +1465,7 @@ mod tests {
             supports: vec![support(&truth())],
             window: 31,
             degree: 4,
+            sample_period: 0.01,
         };
         let check = refine_and_check_among(&streaming, &candidates, &data);
         assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -1496,6 +1493,7 @@ mod tests {
             supports: vec![with_sine],
             window: 31,
             degree: 4,
+            sample_period: 0.01,
         };
         let check = refine_and_check_among(&streaming, &candidates, &data);
         let [on_streaming, with_sine] = [&check.supports[0], &check.supports[1]]

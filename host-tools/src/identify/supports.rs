@@ -31,6 +31,8 @@ pub struct Candidates {
     pub window: usize,
     /// Its polynomial degree.
     pub degree: usize,
+    /// The sample period the identifier took (the recording's median step), seconds.
+    pub sample_period: f64,
 }
 
 impl Candidates {
@@ -79,6 +81,7 @@ impl Candidates {
             supports,
             window: report.window,
             degree: usize::from(report.degree),
+            sample_period: report.sample_period,
         }
     }
 }
@@ -139,8 +142,7 @@ pub fn least_squares_start(
     support: &[Term],
     streaming: &SimModel,
     data: &Data,
-    window: usize,
-    degree: usize,
+    derivatives: &Candidates,
 ) -> Option<SimModel> {
     let kept = |t: &Term| {
         streaming
@@ -157,7 +159,7 @@ pub fn least_squares_start(
     let fitted = if added.is_empty() {
         Vec::new()
     } else {
-        residual_least_squares(&added, streaming, data, window, degree)?
+        residual_least_squares(&added, streaming, data, derivatives)?
     };
     let terms: Vec<(Term, f64)> = support
         .iter()
@@ -183,16 +185,18 @@ fn residual_least_squares(
     added: &[Term],
     streaming: &SimModel,
     data: &Data,
-    window: usize,
-    degree: usize,
+    derivatives: &Candidates,
 ) -> Option<Vec<f64>> {
+    let Candidates {
+        window,
+        degree,
+        sample_period: dt,
+        ..
+    } = *derivatives;
     let n = data.t.len().min(data.x.len());
     if n < window.max(8) {
         return None;
     }
-    let mut steps: Vec<f64> = data.t.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let dt = *steps.get(steps.len() / 2)?;
     let design = Design::<f64>::new(window, degree, dt, window).ok()?;
     let taps: Vec<[f64; 3]> = (0..window).map(|k| design.taps(k)).collect();
     let half = (window - 1) as f64 / 2.0;
@@ -300,7 +304,13 @@ mod tests {
             Term::Monomial { px: 1, pv: 0 },
             Term::Monomial { px: 0, pv: 1 },
         ];
-        let start = least_squares_start(&support, &streaming, &data, 31, 4).expect("solves");
+        let derivatives = Candidates {
+            supports: Vec::new(),
+            window: 31,
+            degree: 4,
+            sample_period: 0.005,
+        };
+        let start = least_squares_start(&support, &streaming, &data, &derivatives).expect("solves");
         assert_eq!(start.terms[1], (Term::Monomial { px: 1, pv: 0 }, -4.0));
         assert!((start.terms[0].1 - 4.0).abs() < 1e-4, "{:?}", start.terms);
         assert!(start.terms[2].1.abs() < 1e-4, "{:?}", start.terms);

@@ -42,6 +42,14 @@ impl Truth {
     pub fn coefficient(&self, term: &str) -> Option<f64> {
         self.terms.iter().find(|t| t.term == term).map(|t| t.coef)
     }
+
+    /// The active terms as (name, coefficient) pairs, in the truth's order.
+    pub fn named_terms(&self) -> Vec<(String, f64)> {
+        self.terms
+            .iter()
+            .map(|t| (t.term.clone(), t.coef))
+            .collect()
+    }
 }
 
 /// One active term of the true equation.
