@@ -36,11 +36,6 @@ impl<T: Real, const P: usize> FactorPair<T, P> {
         self.n = n.min(P);
     }
 
-    /// Number of columns.
-    pub fn columns(&self) -> usize {
-        self.n
-    }
-
     /// A, to read.
     #[inline]
     pub fn a(&self) -> FactorRef<'_, T, P> {

@@ -65,19 +65,9 @@ impl<'a, T: Real, const P: usize> FactorRef<'a, T, P> {
         }
     }
 
-    /// Number of columns.
-    pub fn columns(&self) -> usize {
-        self.n
-    }
-
     /// Σ λ^age: the effective number of rows.
     pub fn weight(&self) -> T {
         self.weight
-    }
-
-    /// The residual energy ρ² of the full least-squares fit.
-    pub fn residual_energy(&self) -> T {
-        self.rho2
     }
 
     /// Residual energy Σ λ^age (y − θᵀξ)² of a coefficient vector: ‖Rξ − z‖² + ρ².
@@ -250,16 +240,6 @@ impl<T: Real, const P: usize> FactorMut<'_, T, P> {
                 (&mut d[0], tail)
             }
         }
-    }
-
-    /// Number of columns.
-    pub fn columns(&self) -> usize {
-        self.n
-    }
-
-    /// Σ λ^age: the effective number of rows.
-    pub fn weight(&self) -> T {
-        *self.weight
     }
 
     /// Forgets by `sqrt_lambda` (√λ) and folds in one row θ with target y.
