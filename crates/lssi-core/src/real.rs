@@ -80,7 +80,7 @@ impl Real for f32 {
     }
     #[inline]
     fn sqrt(self) -> Self {
-        libm::sqrtf(self)
+        sqrtf(self)
     }
     #[inline]
     fn sin(self) -> Self {
@@ -162,6 +162,43 @@ impl Real for f64 {
     #[inline]
     fn is_finite(self) -> bool {
         f64::is_finite(self)
+    }
+}
+
+/// √x in f32, correctly rounded (IEEE 754) wherever it runs, so the host's f32 and the
+/// device's agree bit for bit.
+///
+/// On an Arm core with a hardware FPU (the Cortex-M4F's `thumbv7em-none-eabihf`) this is
+/// the FPU's VSQRT.F32, one instruction; `libm::sqrtf` would be its software square root
+/// (about 60 instructions a call), and the Givens rotations and the k-neighbour smoother's
+/// Cholesky factorisation take one per column.
+#[inline(always)]
+fn sqrtf(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let bits: u32;
+        // SAFETY: the FPU's VSQRT.F32 on a copy of x moved into s15, whose own value is
+        // saved on the stack and put back: no register the compiler uses changes (Rust's
+        // asm! names single-precision registers only on cores with double precision, which
+        // the M4F's FPU lacks). No memory but those 4 bytes of stack, no condition flags.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                "vpush {{s15}}",
+                "vmov s15, {x}",
+                "vsqrt.f32 s15, s15",
+                "vmov {root}, s15",
+                "vpop {{s15}}",
+                x = in(reg) x.to_bits(),
+                root = lateout(reg) bits,
+                options(pure, nomem, preserves_flags)
+            );
+        }
+        f32::from_bits(bits)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
     }
 }
 

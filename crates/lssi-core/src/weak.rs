@@ -91,6 +91,15 @@ impl<T: Real, const P: usize> TestRows<T, P> {
         self.quarter
     }
 
+    /// Whether the next [`TestRows::push`] completes a sum. Sum k (started k·L/4 rows in)
+    /// completes when its row (phase − k·L/4) mod L is its last, L − 1; the four are a
+    /// quarter apart, so this is when phase + 1 is a multiple of L/4, from L on.
+    #[inline]
+    pub fn completes_next(&self) -> bool {
+        let next = self.phase + 1;
+        self.quarter > 0 && next.is_multiple_of(self.quarter) && next >= self.width
+    }
+
     /// Adds a row's weighted target `wy` to sum `j`, at its row `i`; hands the sum to `emit`
     /// and starts it again when that row is its last.
     #[inline(always)]
@@ -179,6 +188,24 @@ mod tests {
         for (_, a, b, y) in out {
             assert!((a - 1.0).abs() < 1e-12 && (b - 2.0).abs() < 1e-12 && (y - 3.0).abs() < 1e-12);
         }
+    }
+
+    /// `completes_next` says beforehand exactly which pushes complete a sum, across the
+    /// phase's wrap, for widths 4 to 64.
+    #[test]
+    fn completes_next_foretells_every_completion() {
+        for width in (4..=64).step_by(4) {
+            let mut t: TestRows<f64, 2> = TestRows::zeroed();
+            t.configure(width);
+            for r in 0..20 * u32::from(width) {
+                let foretold = t.completes_next();
+                let mut completed = false;
+                t.push(&[1.0, 2.0], 3.0, 2, |_, _| completed = true);
+                assert_eq!(foretold, completed, "width {width}, row {r}");
+            }
+        }
+        let off: TestRows<f64, 2> = TestRows::zeroed();
+        assert!(!off.completes_next());
     }
 
     /// A linear ramp's weighted mean is its value at the window's centre (φ is symmetric),

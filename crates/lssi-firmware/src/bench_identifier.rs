@@ -461,8 +461,8 @@ fn profile(meter: &mut Meter) {
         // one row in 16, the others only buffered.
         let ((sx, sv), cost) = meter.measure(|| {
             (
-                smooth_x.push_with(x_hat, false),
-                smooth_v.push_with(v_hat, false),
+                smooth_x.push_with(x_hat, false, false),
+                smooth_v.push_with(v_hat, false, false),
             )
         });
         if sx.is_some() {

@@ -170,3 +170,37 @@ fn f32_stays_finite_and_close_over_a_million_rows() {
         );
     }
 }
+
+/// An update split in two (`begin_update` at any column, then `finish_update`) leaves both
+/// halves of a pair exactly as one `update` does, in f32, with forgetting.
+#[test]
+fn a_split_update_is_the_update_bit_for_bit() {
+    let data = rows(40);
+    for split in 0..=5 {
+        for to_a in [true, false] {
+            let (mut whole, mut parts) = (FactorPair::<f32, 4>::new(4), FactorPair::new(4));
+            for (row, y) in &data {
+                let row32 = row.map(|v| v as f32);
+                whole.half_mut(to_a).update(&row32, *y as f32, 0.99);
+                let mut rest = row32;
+                let target = parts
+                    .half_mut(to_a)
+                    .begin_update(&mut rest, *y as f32, split, 0.99);
+                parts.half_mut(to_a).finish_update(&mut rest, target, split);
+            }
+            let (w, p) = if to_a {
+                (whole.a(), parts.a())
+            } else {
+                (whole.b(), parts.b())
+            };
+            assert_eq!(w.weight().to_bits(), p.weight().to_bits());
+            for i in 0..4 {
+                for j in 0..4 {
+                    assert_eq!(w.gram(i, j).to_bits(), p.gram(i, j).to_bits(), "{split}");
+                }
+                assert_eq!(w.moment(i).to_bits(), p.moment(i).to_bits(), "{split}");
+            }
+            assert_eq!(w.target_norm().to_bits(), p.target_norm().to_bits());
+        }
+    }
+}

@@ -248,20 +248,46 @@ impl<T: Real, const P: usize> FactorMut<'_, T, P> {
         self.forget(sqrt_lambda);
         let mut a = [T::ZERO; P];
         a[..n].copy_from_slice(&row[..n]);
-        self.fold(0, n, &mut a, y);
+        let b = self.fold(0, n, n, &mut a, y);
+        self.close_update(b);
+    }
+
+    /// [`FactorMut::update`] in two parts: this one forgets and rotates the row `a` (target
+    /// `b`) into the first `split` rows of the factor, leaving in `a` and the returned target
+    /// what [`FactorMut::finish_update`] folds in later. The two parts do the same arithmetic
+    /// in the same order as `update`, so the factor comes out the same, bit for bit; in
+    /// between, the factor must not be read or changed otherwise.
+    pub fn begin_update(&mut self, a: &mut [T; P], b: T, split: usize, sqrt_lambda: T) -> T {
+        self.forget(sqrt_lambda);
+        let n = self.n;
+        self.fold(0, split.min(n), n, a, b)
+    }
+
+    /// The rest of an update that [`FactorMut::begin_update`] began at `split`.
+    pub fn finish_update(&mut self, a: &mut [T; P], b: T, split: usize) {
+        let n = self.n;
+        let b = self.fold(split.min(n), n, n, a, b);
+        self.close_update(b);
+    }
+
+    /// Ends a row's update: its residual `b` goes to ρ², its weight to the factor's.
+    #[inline]
+    fn close_update(&mut self, b: T) {
+        *self.rho2 += b * b;
         *self.weight += T::ONE;
     }
 
-    /// Folds in the row `a` (target `b`), whose entries left of `start` are zero, over the
-    /// first `n` columns by Givens rotations; its residual goes to ρ². The loop is written
-    /// once for rows in place and once for flipped ones (the per-row layout test cost 8 % of
-    /// an update).
+    /// Rotates the row `a` (target `b`) over the first `n` columns into the factor's rows
+    /// `start..end`; the row's entries left of `start` are zero, those from `end` on are what is left to fold in
+    /// (the factor's rows from `end` on are untouched). Returns the target's remainder.
+    /// The loop is written once for rows in place and once for flipped ones (the per-row
+    /// layout test cost 8 % of an update).
     #[inline(never)]
-    fn fold(&mut self, start: usize, n: usize, a: &mut [T; P], mut b: T) {
+    fn fold(&mut self, start: usize, end: usize, n: usize, a: &mut [T; P], mut b: T) -> T {
         let z = &mut *self.z;
         match &mut self.layout {
             Layout::Flipped(diag) => {
-                for i in start..n {
+                for i in start..end {
                     if a[i] == T::ZERO {
                         continue;
                     }
@@ -270,7 +296,7 @@ impl<T: Real, const P: usize> FactorMut<'_, T, P> {
                 }
             }
             _ => {
-                for i in start..n {
+                for i in start..end {
                     if a[i] == T::ZERO {
                         continue;
                     }
@@ -279,7 +305,7 @@ impl<T: Real, const P: usize> FactorMut<'_, T, P> {
                 }
             }
         }
-        *self.rho2 += b * b;
+        b
     }
 
     /// Ages everything by `sqrt_lambda` (√λ per row, raised to the rows elapsed).
@@ -311,7 +337,8 @@ impl<T: Real, const P: usize> FactorMut<'_, T, P> {
             for (r, t) in row[i + 1..n].iter_mut().zip(tail) {
                 *r = *t;
             }
-            self.fold(i, n, &mut row, other.z[i]);
+            let b = self.fold(i, n, n, &mut row, other.z[i]);
+            *self.rho2 += b * b;
         }
         // The rotations added the disagreement between the two fits to ρ²; the other's own
         // residual energy comes on top.

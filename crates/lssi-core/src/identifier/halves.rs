@@ -33,6 +33,26 @@ pub(super) enum Collector<T, const P: usize> {
     Sums(TestRows<T, P>),
 }
 
+/// A test-function sum whose fold into A or B is half done: [`Halves::push`] rotates its
+/// first columns in on the row that completes it and the rest on the next row it takes, so
+/// that no single sample pays for a whole fold (and an evaluation of ε(K) or a resync of the
+/// phasor, which the identifier moves off both rows).
+///
+/// Not an `Option`: its niche would make "none" non-zero bits, and the halves live in the
+/// device's `.bss`.
+#[derive(Clone)]
+struct Pending<T, const P: usize> {
+    /// Whether a fold is pending (the fields below mean something).
+    active: bool,
+    /// What is left of the sum's columns (zero before `split`) and of its target.
+    row: [T; P],
+    target: T,
+    /// The first column not rotated in yet.
+    split: usize,
+    /// Whether it goes to A.
+    to_a: bool,
+}
+
 /// The solver stage: the warm-up rows, then A, B and the block (or sums) in progress.
 ///
 /// ```text
@@ -47,6 +67,8 @@ pub(super) struct Halves<T, const P: usize> {
     store: Store<T, P>,
     /// What gathers the rows before they reach A or B.
     collector: Collector<T, P>,
+    /// A sum's fold begun and not finished.
+    pending: Pending<T, P>,
     /// Rows given to A and B: the rows themselves, or the test-function sums.
     regression_rows: u64,
     /// Regression rows per block of A or B.
@@ -61,6 +83,13 @@ impl<T: Real, const P: usize> Halves<T, P> {
         Self {
             store: Store::Warmup(heapless::Vec::new()),
             collector: Collector::Block(Factor::new(0)),
+            pending: Pending {
+                active: false,
+                row: [T::ZERO; P],
+                target: T::ZERO,
+                split: 0,
+                to_a: false,
+            },
             regression_rows: 0,
             block_len: 0,
             sqrt_lambda: T::ZERO,
@@ -79,6 +108,7 @@ impl<T: Real, const P: usize> Halves<T, P> {
         sqrt_lambda_row: f64,
     ) {
         self.store = Store::Warmup(heapless::Vec::new());
+        self.pending.active = false;
         self.regression_rows = 0;
         if test_rows == 0 {
             self.collector = Collector::Block(Factor::new(n));
@@ -137,6 +167,7 @@ impl<T: Real, const P: usize> Halves<T, P> {
         let Self {
             collector,
             store,
+            pending,
             regression_rows,
             block_len,
             sqrt_lambda,
@@ -166,18 +197,45 @@ impl<T: Real, const P: usize> Halves<T, P> {
                 }
             }
             // A sum weighs as much as L/4 rows and there are few of them (10⁵ samples make
-            // 400): each goes straight into A or B, blocks of TEST_BLOCK alternating.
+            // 400): each goes straight into A or B, blocks of TEST_BLOCK alternating, its
+            // fold split over two rows (`Pending`).
             Collector::Sums(sums) => {
+                if pending.active {
+                    pending.active = false;
+                    pair.half_mut(pending.to_a).finish_update(
+                        &mut pending.row,
+                        pending.target,
+                        pending.split,
+                    );
+                }
                 sums.push(theta, y, n, |sum, target| {
                     let to_a = Self::goes_to_a(*regression_rows, block_len);
                     let mut factor = pair.half_mut(to_a);
                     if regression_rows.is_multiple_of(block_len) {
                         factor.forget(sqrt_lambda_blocks);
                     }
-                    factor.update(sum, target, sqrt_lambda);
+                    let split = fold_split(n);
+                    pending.row = *sum;
+                    pending.target =
+                        factor.begin_update(&mut pending.row, target, split, sqrt_lambda);
+                    pending.split = split;
+                    pending.to_a = to_a;
+                    pending.active = true;
                     *regression_rows += 1;
                 });
             }
+        }
+    }
+
+    /// Whether the next row [`Halves::push`] takes folds (part of) a test-function sum into
+    /// A or B: it completes a sum, or finishes the fold of the last one.
+    #[inline]
+    pub(super) fn folds_next(&self) -> bool {
+        match (&self.collector, &self.store) {
+            (Collector::Sums(sums), Store::Halves(_)) => {
+                self.pending.active || sums.completes_next()
+            }
+            _ => false,
         }
     }
 
@@ -198,6 +256,12 @@ impl<T: Real, const P: usize> Halves<T, P> {
             Store::Halves(pair) => (pair.a().weight(), pair.b().weight()),
             Store::Warmup(_) => (T::ZERO, T::ZERO),
         };
+        // A half-folded sum's weight is added when its fold finishes.
+        match (self.pending.active, self.pending.to_a) {
+            (true, true) => a += T::ONE,
+            (true, false) => b += T::ONE,
+            (false, _) => {}
+        }
         if let Some((block, to_a)) = self.open_block() {
             if to_a {
                 a += block.weight();
@@ -208,16 +272,33 @@ impl<T: Real, const P: usize> Halves<T, P> {
         (a, b)
     }
 
-    /// Copies A and B, with the block in progress merged in, into `pair`.
+    /// Copies A and B, with the block in progress merged in (or a sum's fold finished),
+    /// into `pair`.
     pub(super) fn copy_into(&self, pair: &mut FactorPair<T, P>) {
         match &self.store {
             Store::Halves(stored) => pair.copy_from(stored),
             Store::Warmup(_) => pair.clear(),
         }
+        // The same rotations the next row will make on the stored halves: the copy is what
+        // they will be, bit for bit.
+        let p = &self.pending;
+        if p.active {
+            let mut row = p.row;
+            pair.half_mut(p.to_a)
+                .finish_update(&mut row, p.target, p.split);
+        }
         if let Some((block, to_a)) = self.open_block() {
             pair.half_mut(to_a).merge(block.view());
         }
     }
+}
+
+/// The columns of a sum whose rotations go in on the row that completes it; the rest go in
+/// on the next. The first part also ages the whole factor (about the cost of rotating a
+/// quarter of the columns in), so a quarter of the columns balances the two rows.
+#[inline]
+fn fold_split(n: usize) -> usize {
+    n / 4
 }
 
 /// x^n for the forgetting factors (0 < x ≤ 1), as exp(n·ln x): `libm::exp` and `libm::log`

@@ -22,7 +22,14 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         }
         self.measure_noise(estimate.x, estimate.v);
         let t = t_newest - self.schedule.row_lag;
-        let Some(row) = self.smoothing.push(self.config.smoothing, estimate, t) else {
+        // A row that folds (part of) a test-function sum into A or B defers an evaluation of
+        // ε(K) due on it to the next row, and a row that does either defers the phasor's
+        // resync: a sample pays for one of the three at most.
+        let folds = self.halves.folds_next();
+        let Some(row) = self
+            .smoothing
+            .push(self.config.smoothing, estimate, t, folds)
+        else {
             return;
         };
         if !self.gate.admit(row.v) {
@@ -38,7 +45,8 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             }
             return;
         }
-        self.fold(&row);
+        let busy = folds || self.smoothing.evaluated();
+        self.fold(&row, busy);
     }
 
     /// What the smoothing decision (and the noise correction) needs from a row.
@@ -63,15 +71,16 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         let rows = self.halves.end_warmup(self.library.len());
         self.columns.set(&self.library, &rows);
         for r in rows.iter() {
-            self.fold(r);
+            self.fold(r, false);
         }
     }
 
-    /// A row through the library (with the phasor of its time) into A or B.
-    pub(super) fn fold(&mut self, r: &Row<T>) {
+    /// A row through the library (with the phasor of its time) into A or B; on a `busy`
+    /// row the phasor's resync may wait a few rows.
+    pub(super) fn fold(&mut self, r: &Row<T>, busy: bool) {
         let mut theta = [T::ZERO; P];
         if self.config.library.harmonics > 0 {
-            self.phasor.turn_to(r.t, self.config.omega);
+            self.phasor.turn_to(r.t, self.config.omega, busy);
         }
         let (s1, c1) = self.phasor.sin_cos();
         let y = self.columns.row(&self.library, r, s1, c1, &mut theta);

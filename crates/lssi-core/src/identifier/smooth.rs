@@ -14,7 +14,7 @@ pub(super) const DELAY: usize = KnnSmoother::<f32>::LAG + 1;
 ///
 /// ```text
 /// let mut smoothing = Smoothing::new(row_stride);
-/// if let Some(row) = smoothing.push(config.smoothing, estimate, t) { /* a row */ }
+/// if let Some(row) = smoothing.push(config.smoothing, estimate, t, defer) { /* a row */ }
 /// smoothing.adapt(noise.levels(velocity)); // at a scheduled screening
 /// ```
 #[derive(Clone, Debug)]
@@ -57,6 +57,12 @@ impl<T: Real> Smoothing<T> {
         s
     }
 
+    /// Whether the last push evaluated ε(K) on either channel (never while the smoothing is
+    /// disabled: the smoothers are then not pushed).
+    pub(super) fn evaluated(&self) -> bool {
+        self.x.evaluated() || self.v.evaluated()
+    }
+
     /// Forgets the neighbours and the delay line (after a gap).
     pub(super) fn restart(&mut self) {
         self.x.restart();
@@ -67,9 +73,16 @@ impl<T: Real> Smoothing<T> {
 
     /// The regression row of an estimate taken at time `t`: as it is when `enabled` is false;
     /// otherwise x̂ and v̂ smoothed (each where its smoothing is on) with ŷ, û and t delayed
-    /// to match, once the smoothers and the delay line are full.
+    /// to match, once the smoothers and the delay line are full. With `defer`, an evaluation
+    /// of ε(K) due on this row moves to the next ([`KnnSmoother::push_with`]).
     #[inline]
-    pub(super) fn push(&mut self, enabled: bool, e: Estimate<T>, t: f64) -> Option<Row<T>> {
+    pub(super) fn push(
+        &mut self,
+        enabled: bool,
+        e: Estimate<T>,
+        t: f64,
+        defer: bool,
+    ) -> Option<Row<T>> {
         if !enabled {
             return Some(Row {
                 x: e.x,
@@ -80,8 +93,8 @@ impl<T: Real> Smoothing<T> {
             });
         }
         // A channel whose smoothing is off needs only its ε(K) (sampled more sparsely).
-        let sx = self.x.push_with(e.x, self.on.0);
-        let sv = self.v.push_with(e.v, self.on.1);
+        let sx = self.x.push_with(e.x, self.on.0, defer);
+        let sv = self.v.push_with(e.v, self.on.1, defer);
         // Delay x'', u and t by the smoother's lag.
         let slot = (self.delay_head + self.delay_len) % DELAY;
         self.delay[slot] = (e.y, e.u, t);
@@ -161,7 +174,7 @@ mod tests {
     fn disabled_passes_the_estimate_through() {
         let mut s = Smoothing::<f64>::new(4);
         let (e, t) = estimate(7);
-        let row = s.push(false, e, t).expect("a row at once");
+        let row = s.push(false, e, t, false).expect("a row at once");
         assert_eq!((row.x, row.v, row.y, row.u, row.t), (e.x, e.v, e.y, e.u, t));
         assert_eq!(s.applied(false), (false, false));
         assert_eq!(s.ks(false), (0, 0));
@@ -173,7 +186,7 @@ mod tests {
         let mut first = None;
         for i in 0..200 {
             let (e, t) = estimate(i);
-            if let Some(row) = s.push(true, e, t) {
+            if let Some(row) = s.push(true, e, t, false) {
                 // Smoothing is off until `adapt` turns it on: x is the delayed x̂, at the
                 // delayed time.
                 let lag = i - (row.t / 0.01).round() as u32;
@@ -187,7 +200,7 @@ mod tests {
         assert_eq!(first, Some(KnnSmoother::<f64>::LAG as u32));
         s.restart();
         let (e, t) = estimate(300);
-        assert!(s.push(true, e, t).is_none());
+        assert!(s.push(true, e, t, false).is_none());
     }
 
     #[test]
@@ -195,7 +208,7 @@ mod tests {
         let mut s = Smoothing::<f64>::new(4);
         for i in 0..400 {
             let (e, t) = estimate(i);
-            let _ = s.push(true, e, t);
+            let _ = s.push(true, e, t, false);
         }
         let quiet = Levels {
             noise: (0.0, 0.0),
