@@ -28,7 +28,7 @@ mod weak;
 
 pub use config::{Channels, Config, ConfigError};
 pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Snapshot};
-pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, Term};
+pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, RowTables, Term};
 pub use model::{MAX_SOLUTIONS, Model, Solution};
 pub use real::Real;
 pub use restoring::{Equilibrium, RestoringForce};

@@ -42,7 +42,7 @@ use crate::real::Real;
 use crate::screen;
 use crate::smoothing::KnnSmoother;
 
-use columns::Columns;
+use columns::{Columns, Scratch};
 use front::Front;
 use gate::Gate;
 use halves::Halves;
@@ -152,6 +152,9 @@ pub struct Identifier<T: Real, const W: usize, const P: usize, const C: usize = 
     phasor: Phasor<T>,
     /// The column scales of the library row.
     columns: Columns<T, P>,
+    /// The library row's tables and the row itself, kept from row to row (not zeroed for
+    /// every row; never part of the identifier's state).
+    scratch: Scratch<T, P>,
     /// The warm-up, then the held-out halves A and B (square-root factors).
     halves: Halves<T, P>,
     counters: Counters,

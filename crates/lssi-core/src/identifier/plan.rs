@@ -44,6 +44,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             extent: Extent::zeroed(),
             phasor: Phasor::zeroed(),
             columns: Columns::zeroed(),
+            scratch: Scratch::zeroed(),
             halves: Halves::zeroed(),
             counters: Counters {
                 accepted: 0,
@@ -81,6 +82,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             extent,
             phasor,
             columns,
+            scratch,
             halves,
             counters,
             model,
@@ -104,6 +106,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         *extent = Extent::new();
         *phasor = Phasor::new(c.omega, row_period);
         *columns = Columns::new();
+        *scratch = Scratch::zeroed();
         halves.configure(plan.library.len(), c.test_rows, blocks, sqrt_lambda_row);
         *counters = Counters::default();
         *model = None;

@@ -78,13 +78,14 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// A row through the library (with the phasor of its time) into A or B; on a `busy`
     /// row the phasor's resync may wait a few rows.
     pub(super) fn fold(&mut self, r: &Row<T>, busy: bool) {
-        let mut theta = [T::ZERO; P];
         if self.config.library.harmonics > 0 {
             self.phasor.turn_to(r.t, self.config.omega, busy);
         }
-        let (s1, c1) = self.phasor.sin_cos();
-        let y = self.columns.row(&self.library, r, s1, c1, &mut theta);
+        let phasor = self.phasor.sin_cos();
+        let y = self
+            .columns
+            .row(&self.library, r, phasor, &mut self.scratch);
         self.counters.rows += 1;
-        self.halves.push(&theta, y, self.library.len());
+        self.halves.push(&self.scratch.theta, y, self.library.len());
     }
 }

@@ -68,6 +68,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             extent,
             phasor,
             columns,
+            scratch: _,
             halves,
             counters,
             model: _,

@@ -39,6 +39,15 @@ fn evaluate_scaled_matches_evaluate_sin_cos_bit_for_bit() {
                     let bits =
                         |r: &[f32]| r.iter().map(|t| t.to_bits()).collect::<std::vec::Vec<_>>();
                     assert_eq!(bits(&row), bits(&expected), "{config:?}");
+                    // Tables kept from row to row: whatever they held (NaN here), the row
+                    // is the same, bit for bit.
+                    let mut tables = RowTables {
+                        left: [f32::NAN; LEFT],
+                        right: [f32::NAN; RIGHT],
+                    };
+                    let mut kept = [0.0f32; 32];
+                    library.evaluate_scaled_in((x, v, s1, c1, u), &scales, &mut kept, &mut tables);
+                    assert_eq!(bits(&kept), bits(&expected), "{config:?}");
                 }
             }
         }
