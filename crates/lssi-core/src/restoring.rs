@@ -205,11 +205,18 @@ pub(crate) fn bracket_roots(
             for _ in 0..80 {
                 let m = 0.5 * (a + b);
                 let pm = p(m);
+                let before = (a, b, pa);
                 if pa * pm <= 0.0 {
                     b = m;
                 } else {
                     a = m;
                     pa = pm;
+                }
+                // Once an iteration changes nothing, none of the rest would (the same a, b
+                // and p(a) give the same step): stop there, with the same root. On the M4F
+                // this is soft f64, and the bracket is down to adjacent doubles after ~55.
+                if (a, b, pa) == before {
+                    break;
                 }
             }
             found(0.5 * (a + b));

@@ -54,6 +54,20 @@ fn evaluate_scaled_matches_evaluate_sin_cos_bit_for_bit() {
     }
 }
 
+/// The table's binomial coefficients are n! / (k! (n − k)!) for every n up to the largest
+/// order, and 0 outside.
+#[test]
+fn binomials_are_pascals_triangle() {
+    let factorial = |n: u8| (1..=u64::from(n)).product::<u64>();
+    for n in 0..=MAX_POLY_ORDER {
+        for k in 0..=n {
+            let expected = factorial(n) / (factorial(k) * factorial(n - k));
+            assert_eq!(u64::from(binomial(n, k)), expected, "C({n}, {k})");
+        }
+        assert_eq!(binomial(n, n + 1), 0);
+    }
+}
+
 #[test]
 fn names_follow_the_convention() {
     let cases = [
