@@ -110,7 +110,7 @@ samples = max((count.get(entry[f], 0) for f in marks), default=0)
 if samples == 0:
     sys.exit('firmware-profile: no sample was pushed in the trace (a longer LSSI_PROFILE_SECONDS?)')
 total = 0
-by_line, by_file = collections.Counter(), collections.Counter()
+by_line, by_file, by_func = collections.Counter(), collections.Counter(), collections.Counter()
 for a, c in count.items():
     f, l = func_of.get(a, '?'), short_line(line_of.get(a))
     in_core = 'lssi_core' in f or ('bench_identifier::stream' in f and 'closure' in f)
@@ -120,6 +120,7 @@ for a, c in count.items():
         continue
     total += c
     by_line[(short_func(f), l)] += c
+    by_func[short_func(f)] += c
     file = l.split(':')[0] if l.startswith('lssi-core/') else 'std, inlined into ' + short_func(f)
     by_file[file] += c
 print(f'firmware profile, image {image}: {samples} samples pushed in the trace; '
@@ -130,6 +131,11 @@ print('| instructions a sample | source file (lssi-core), or standard library in
 print('|---:|---|')
 for file, c in by_file.most_common(25):
     print(f'| {c / samples:.1f} | {file} |')
+print()
+print('| instructions a sample | function (with what was inlined into it) |')
+print('|---:|---|')
+for f, c in by_func.most_common(20):
+    print(f'| {c / samples:.1f} | `{f}` |')
 print()
 print('| instructions a sample | function | line |')
 print('|---:|---|---|')
