@@ -170,8 +170,7 @@ impl Real for f64 {
 ///
 /// On an Arm core with a hardware FPU (the Cortex-M4F's `thumbv7em-none-eabihf`) this is
 /// the FPU's VSQRT.F32, one instruction; `libm::sqrtf` would be its software square root
-/// (about 60 instructions a call), and the Givens rotations and the k-neighbour smoother's
-/// Cholesky factorisation take one per column.
+/// (about 60 instructions a call), and the Givens rotations take one per column.
 #[inline(always)]
 fn sqrtf(x: f32) -> f32 {
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
