@@ -1,0 +1,103 @@
+//! Standard errors of refined coefficients (see the module doc of [`super`]).
+
+use lssi_core::Term;
+use nalgebra::{DMatrix, DVector};
+
+use super::Data;
+use super::shooting::{Shape, Solution, jacobian, rss};
+
+/// The standard errors of a solution's coefficients (see the module doc): the marginal
+/// covariance of the coefficients in the inverse of the full normal matrix (coefficients,
+/// every segment's initial state and, when the model has a sin/cos term, the excitation
+/// frequency Ω), scaled by the residual variance and the residuals' correlation factor, plus
+/// the shift of the coefficients that freeing Ω would make (one Gauss–Newton step), squared:
+/// the coefficients are refined at the streaming model's Ω, and its error moves them.
+/// `None` when a simulation diverges or the normal matrix is singular.
+pub(crate) fn standard_errors(shape: &Shape, data: &Data, sol: &Solution) -> Option<Vec<f64>> {
+    let n = data.len();
+    let k = sol.coefficients.len();
+    let (c, segs, states) = (&sol.coefficients, &sol.segments, &sol.states);
+    let (mut base, mut plus, mut minus) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let rss0 = rss(shape, c, data, segs, states, &mut base)?;
+    let mut columns = jacobian(shape, c, data, segs, states, k, &mut plus, &mut minus)?;
+    let periodic = shape
+        .terms
+        .iter()
+        .any(|t| matches!(t, Term::Sin(_) | Term::Cos(_)));
+    if periodic {
+        let h = 1e-6 * shape.omega.abs().max(1e-9);
+        let moved = |by: f64| Shape {
+            omega: shape.omega + by,
+            ..shape.clone()
+        };
+        rss(&moved(h), c, data, segs, states, &mut plus)?;
+        rss(&moved(-h), c, data, segs, states, &mut minus)?;
+        columns.push((0..n).map(|i| (plus[i] - minus[i]) / (2.0 * h)).collect());
+    }
+    // Parameters: the coefficients, two per segment, then Ω (when periodic).
+    let shared = columns.len() - 2;
+    let p = k + 2 * segs.len() + usize::from(periodic);
+    let mut normal = DMatrix::<f64>::zeros(p, p);
+    let mut gradient = DVector::<f64>::zeros(p);
+    for (s, &(a, b)) in segs.iter().enumerate() {
+        let idx = |q: usize| match q {
+            q if q < k => q,
+            q if q < k + 2 => k + 2 * s + (q - k),
+            _ => p - 1,
+        };
+        for i in a..b {
+            let r = base[i] - data.x[i];
+            for q1 in 0..shared + 2 {
+                let j1 = columns[q1][i];
+                gradient[idx(q1)] += j1 * r;
+                for q2 in q1..shared + 2 {
+                    normal[(idx(q1), idx(q2))] += j1 * columns[q2][i];
+                }
+            }
+        }
+    }
+    for a in 0..p {
+        for b in 0..a {
+            normal[(a, b)] = normal[(b, a)];
+        }
+    }
+    let inverse = normal.cholesky()?.inverse();
+    let m: usize = segs.iter().map(|&(a, b)| b - a).sum();
+    let sigma2 = rss0 / m.saturating_sub(p).max(1) as f64 * correlation_factor(&sol.residuals);
+    // The coefficients' shift were Ω refined too (zero in the coefficients' and states' own
+    // directions at the optimum: only Ω's gradient moves them).
+    let step = -(&inverse * &gradient);
+    Some(
+        (0..k)
+            .map(|j| {
+                let shift = if periodic { step[j] } else { 0.0 };
+                (sigma2 * inverse[(j, j)] + shift * shift).max(0.0).sqrt()
+            })
+            .collect(),
+    )
+}
+
+/// 1 + 2 Σ ρₖ over the residuals' autocorrelation, summed while it stays above 0.05.
+fn correlation_factor(residuals: &[f64]) -> f64 {
+    let n = residuals.len();
+    if n < 4 {
+        return 1.0;
+    }
+    let mean = residuals.iter().sum::<f64>() / n as f64;
+    let var = residuals.iter().map(|r| (r - mean).powi(2)).sum::<f64>();
+    if var == 0.0 {
+        return 1.0;
+    }
+    let mut factor = 1.0;
+    for lag in 1..n.min(2000) {
+        let rho = (0..n - lag)
+            .map(|i| (residuals[i] - mean) * (residuals[i + lag] - mean))
+            .sum::<f64>()
+            / var;
+        if rho < 0.05 {
+            break;
+        }
+        factor += 2.0 * rho;
+    }
+    factor
+}

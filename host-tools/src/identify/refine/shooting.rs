@@ -1,0 +1,431 @@
+//! Multiple shooting: the model simulated over segments of the data, each from its own
+//! initial state, and Levenberg–Marquardt over the coefficients and the states.
+
+use lssi_core::Term;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+use super::{Data, Span};
+use crate::identify::simulate::SimModel;
+
+/// The model being refined: its support and everything but the coefficients.
+#[derive(Clone, Debug)]
+pub(crate) struct Shape {
+    pub(crate) terms: Vec<Term>,
+    pub(crate) omega: f64,
+    pub(crate) offsets: [f64; 2],
+}
+
+impl Shape {
+    pub(crate) fn of(model: &SimModel) -> (Self, Vec<f64>) {
+        let (terms, coefficients) = model
+            .terms
+            .iter()
+            .filter(|(_, c)| *c != 0.0)
+            .copied()
+            .unzip();
+        (
+            Self {
+                terms,
+                omega: model.omega,
+                offsets: model.offsets,
+            },
+            coefficients,
+        )
+    }
+
+    pub(crate) fn model(&self, coefficients: &[f64]) -> SimModel {
+        SimModel {
+            terms: self
+                .terms
+                .iter()
+                .copied()
+                .zip(coefficients.iter().copied())
+                .collect(),
+            omega: self.omega,
+            offsets: self.offsets,
+        }
+    }
+
+    /// x'' with the excitation's phase given as (sin Ωt, cos Ωt): the harmonics by complex
+    /// powers of it and the monomials by products, without a sin, cos or powi call (the
+    /// simulations here make 16 evaluations a sample, and libm's cos was half the time).
+    pub(crate) fn acceleration(&self, c: &[f64], phase: (f64, f64), x: f64, v: f64, u: f64) -> f64 {
+        let power = |base: f64, n: u8| (0..n).fold(1.0, |p, _| p * base);
+        let harmonic = |k: u8| {
+            let (s1, c1) = phase;
+            (1..k).fold((s1, c1), |(s, c), _| (s * c1 + c * s1, c * c1 - s * s1))
+        };
+        self.terms
+            .iter()
+            .zip(c)
+            .map(|(&term, &c)| {
+                c * match term {
+                    Term::Constant => 1.0,
+                    Term::Monomial { px, pv } => power(x, px) * power(v, pv),
+                    Term::Sin(k) => harmonic(k).0,
+                    Term::Cos(k) => harmonic(k).1,
+                    Term::Input => u,
+                }
+            })
+            .sum()
+    }
+
+    /// Whether the model has a sin or cos term.
+    pub(crate) fn has_harmonics(&self) -> bool {
+        self.terms
+            .iter()
+            .any(|t| matches!(t, Term::Sin(_) | Term::Cos(_)))
+    }
+
+    /// Simulates `data[a..b)` from (x₀, v₀) (recording coordinates) into `out` (b − a
+    /// values: out[0] is sample a); false when the state left the finite numbers.
+    pub(crate) fn simulate(
+        &self,
+        c: &[f64],
+        data: &Data,
+        span: (usize, usize),
+        start: (f64, f64),
+        out: &mut [f64],
+    ) -> bool {
+        const SUBSTEPS: usize = 4;
+        let (a, b) = span;
+        let [ox, ov] = self.offsets;
+        let (mut x, mut v) = (start.0 - ox, start.1 - ov);
+        out[0] = start.0;
+        let harmonics = self.has_harmonics();
+        // (sin Ωs, cos Ωs) at the 2·SUBSTEPS + 1 half-steps s = t0 + j·h/2 of a sample
+        // interval: one sin/cos pair at t0 and one for the half-step's rotation, instead of
+        // one per term and stage (the rotations' rounding, 10⁻¹⁵, is far below the data's).
+        let mut phases = [(0.0, 1.0); 2 * SUBSTEPS + 1];
+        let (mut rotation, mut rotation_for) = ((0.0, 1.0), f64::NAN.to_bits());
+        for i in a..b.saturating_sub(1) {
+            let (t0, t1) = (data.t[i], data.t[i + 1]);
+            let h = (t1 - t0) / SUBSTEPS as f64;
+            if harmonics {
+                // The phase carries on from the last interval's end, recomputed every 64
+                // samples; the rotation is recomputed only when the interval changes.
+                phases[0] = if (i - a) % 64 == 0 {
+                    (self.omega * t0).sin_cos()
+                } else {
+                    phases[2 * SUBSTEPS]
+                };
+                if h.to_bits() != rotation_for {
+                    rotation = (self.omega * 0.5 * h).sin_cos();
+                    rotation_for = h.to_bits();
+                }
+                let (sr, cr) = rotation;
+                for j in 1..phases.len() {
+                    let (s, c) = phases[j - 1];
+                    phases[j] = (s * cr + c * sr, c * cr - s * sr);
+                }
+            }
+            // Stage at half-step j (0..=2·SUBSTEPS).
+            let f = |j: usize, x: f64, v: f64| {
+                let frac = j as f64 / (2 * SUBSTEPS) as f64;
+                self.acceleration(c, phases[j], x, v, data.input(i, frac))
+            };
+            for k in 0..SUBSTEPS {
+                let j = 2 * k;
+                let k1 = (v, f(j, x, v));
+                let k2 = (
+                    v + 0.5 * h * k1.1,
+                    f(j + 1, x + 0.5 * h * k1.0, v + 0.5 * h * k1.1),
+                );
+                let k3 = (
+                    v + 0.5 * h * k2.1,
+                    f(j + 1, x + 0.5 * h * k2.0, v + 0.5 * h * k2.1),
+                );
+                let k4 = (v + h * k3.1, f(j + 2, x + h * k3.0, v + h * k3.1));
+                x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+                v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            }
+            if !(x.is_finite() && v.is_finite()) {
+                return false;
+            }
+            out[i + 1 - a] = x + ox;
+        }
+        true
+    }
+}
+
+/// `[a, b)` cut into segments of about `length` samples (the last one takes the remainder).
+pub(crate) fn segments(a: usize, b: usize, length: usize) -> Vec<(usize, usize)> {
+    let length = length.max(8);
+    let count = ((b - a) / length).max(1);
+    (0..count)
+        .map(|s| {
+            (
+                a + s * length,
+                if s + 1 == count {
+                    b
+                } else {
+                    a + (s + 1) * length
+                },
+            )
+        })
+        .collect()
+}
+
+/// A starting state for each segment: x and x' at its first sample from a quadratic fitted
+/// to its first sixteenth (at least 5 samples): a difference of noisy samples is no velocity.
+pub(crate) fn initial_states(data: &Data, segments: &[(usize, usize)]) -> Vec<(f64, f64)> {
+    segments
+        .iter()
+        .map(|&(a, b)| {
+            let w = ((b - a) / 16).clamp(5, 400).min(b - a);
+            let t0 = data.t[a];
+            // Normal equations of x ≈ p0 + p1 τ + p2 τ², τ = t − t0.
+            let mut m = nalgebra::Matrix3::<f64>::zeros();
+            let mut r = nalgebra::Vector3::<f64>::zeros();
+            for i in a..a + w {
+                let tau = data.t[i] - t0;
+                let phi = nalgebra::Vector3::new(1.0, tau, tau * tau);
+                m += phi * phi.transpose();
+                r += phi * data.x[i];
+            }
+            match m.cholesky() {
+                Some(ch) => {
+                    let p = ch.solve(&r);
+                    (p[0], p[1])
+                }
+                None => (data.x[a], 0.0),
+            }
+        })
+        .collect()
+}
+
+/// What a least-squares run ends with.
+pub(crate) struct Solution {
+    pub(crate) coefficients: Vec<f64>,
+    pub(crate) states: Vec<(f64, f64)>,
+    pub(crate) rss: f64,
+    pub(crate) iterations: usize,
+    /// The residuals at the optimum, segment after segment.
+    pub(crate) residuals: Vec<f64>,
+    /// The segments fitted.
+    pub(crate) segments: Vec<Span>,
+}
+
+/// The residual sum of squares of all segments; `None` if a simulation diverged. The
+/// segments (ascending, disjoint, as `segments` cuts them) are simulated in parallel on every
+/// core, each into its own part of `out`; their sums are added in segment order, so the
+/// result does not depend on the number of threads.
+pub(crate) fn rss(
+    shape: &Shape,
+    c: &[f64],
+    data: &Data,
+    segs: &[(usize, usize)],
+    states: &[(f64, f64)],
+    out: &mut [f64],
+) -> Option<f64> {
+    let mut pieces = Vec::with_capacity(segs.len());
+    let mut rest = out;
+    let mut at = 0;
+    for (&(a, b), &start) in segs.iter().zip(states) {
+        if a < at || b < a || b - at > rest.len() {
+            return None;
+        }
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(a - at);
+        let (piece, tail) = tail.split_at_mut(b - a);
+        rest = tail;
+        at = b;
+        pieces.push(((a, b), start, piece));
+    }
+    let sums: Vec<Option<f64>> = pieces
+        .into_par_iter()
+        .map(|((a, b), start, piece)| {
+            if !shape.simulate(c, data, (a, b), start, piece) {
+                return None;
+            }
+            Some(
+                piece
+                    .iter()
+                    .zip(&data.x[a..b])
+                    .map(|(s, x)| (s - x).powi(2))
+                    .sum::<f64>(),
+            )
+        })
+        .collect();
+    let mut sum = 0.0;
+    for part in sums {
+        sum += part?;
+    }
+    sum.is_finite().then_some(sum)
+}
+
+/// The Jacobian of the simulated x, column by column, by central differences: the `k` first
+/// coefficients, then x₀ and v₀ of the segments (a segment's state moves only that segment, so
+/// one pair of simulations gives all segments' columns: two columns for all states).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn jacobian(
+    shape: &Shape,
+    c: &[f64],
+    data: &Data,
+    segs: &[(usize, usize)],
+    states: &[(f64, f64)],
+    k: usize,
+    plus: &mut [f64],
+    minus: &mut [f64],
+) -> Option<Vec<Vec<f64>>> {
+    let n = data.len();
+    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(k + 2);
+    for j in 0..k {
+        let h = 1e-6 * c[j].abs().max(1e-300);
+        let mut cp = c.to_vec();
+        cp[j] += h;
+        let mut cm = c.to_vec();
+        cm[j] -= h;
+        rss(shape, &cp, data, segs, states, plus)?;
+        rss(shape, &cm, data, segs, states, minus)?;
+        columns.push((0..n).map(|i| (plus[i] - minus[i]) / (2.0 * h)).collect());
+    }
+    let scale = |x: f64| 1e-6 * x.abs().max(1e-9);
+    for which in 0..2 {
+        let pick = |s: &(f64, f64)| if which == 0 { s.0 } else { s.1 };
+        let hs: Vec<f64> = states
+            .iter()
+            .map(|s| scale(pick(s)).max(if which == 0 { 1e-12 } else { 1e-9 }))
+            .collect();
+        let shifted = |sign: f64| -> Vec<(f64, f64)> {
+            states
+                .iter()
+                .zip(&hs)
+                .map(|(&(x, v), &h)| {
+                    if which == 0 {
+                        (x + sign * h, v)
+                    } else {
+                        (x, v + sign * h)
+                    }
+                })
+                .collect()
+        };
+        rss(shape, c, data, segs, &shifted(1.0), plus)?;
+        rss(shape, c, data, segs, &shifted(-1.0), minus)?;
+        let mut column = vec![0.0; n];
+        for (&(a, b), &h) in segs.iter().zip(&hs) {
+            for i in a..b {
+                column[i] = (plus[i] - minus[i]) / (2.0 * h);
+            }
+        }
+        columns.push(column);
+    }
+    Some(columns)
+}
+
+/// Levenberg–Marquardt over the coefficients (unless `fixed`) and every segment's state.
+pub(crate) fn least_squares(
+    shape: &Shape,
+    start: &[f64],
+    data: &Data,
+    segs: &[(usize, usize)],
+    fixed: bool,
+    iterations: usize,
+    states: Option<Vec<(f64, f64)>>,
+) -> Option<Solution> {
+    let n = data.len();
+    let k = if fixed { 0 } else { start.len() };
+    let p = k + 2 * segs.len();
+    let mut c = start.to_vec();
+    let mut states = states.unwrap_or_else(|| initial_states(data, segs));
+    let mut base = vec![0.0; n];
+    let mut plus = vec![0.0; n];
+    let mut minus = vec![0.0; n];
+    let mut current = rss(shape, &c, data, segs, &states, &mut base)?;
+    let mut lambda = 1e-3;
+    let mut done = 0;
+    let mut normal = DMatrix::zeros(p, p);
+    for iteration in 0..iterations {
+        done = iteration + 1;
+        let columns = jacobian(shape, &c, data, segs, &states, k, &mut plus, &mut minus)?;
+        // Normal equations: coefficients × coefficients over every row; a segment's two
+        // state columns meet the coefficients and each other on its own rows only.
+        normal.fill(0.0);
+        let mut gradient = DVector::zeros(p);
+        for (s, &(a, b)) in segs.iter().enumerate() {
+            let idx = |q: usize| if q < k { q } else { k + 2 * s + (q - k) };
+            for i in a..b {
+                let r = base[i] - data.x[i];
+                for q1 in 0..k + 2 {
+                    let j1 = columns[q1][i];
+                    if j1 == 0.0 {
+                        continue;
+                    }
+                    gradient[idx(q1)] += j1 * r;
+                    for q2 in q1..k + 2 {
+                        normal[(idx(q1), idx(q2))] += j1 * columns[q2][i];
+                    }
+                }
+            }
+        }
+        for a in 0..p {
+            for b in 0..a {
+                normal[(a, b)] = normal[(b, a)];
+            }
+        }
+        // Damped steps until one lowers the error.
+        let mut accepted = false;
+        for _ in 0..12 {
+            let mut damped = normal.clone();
+            for d in 0..p {
+                damped[(d, d)] += lambda * normal[(d, d)].max(1e-300);
+            }
+            let Some(step) = damped.cholesky().map(|ch| ch.solve(&(-&gradient))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial_c: Vec<f64> = (0..c.len())
+                .map(|j| if j < k { c[j] + step[j] } else { c[j] })
+                .collect();
+            let trial_states: Vec<(f64, f64)> = states
+                .iter()
+                .enumerate()
+                .map(|(s, &(x, v))| (x + step[k + 2 * s], v + step[k + 2 * s + 1]))
+                .collect();
+            match rss(shape, &trial_c, data, segs, &trial_states, &mut plus) {
+                Some(trial) if trial < current => {
+                    let gain = (current - trial) / current;
+                    c = trial_c;
+                    states = trial_states;
+                    current = trial;
+                    std::mem::swap(&mut base, &mut plus);
+                    lambda = (lambda / 3.0).max(1e-12);
+                    accepted = true;
+                    if gain < 1e-9 {
+                        return finish(c, states, current, done, &base, data, segs);
+                    }
+                    break;
+                }
+                _ => lambda *= 4.0,
+            }
+        }
+        if !accepted {
+            break;
+        }
+    }
+    finish(c, states, current, done, &base, data, segs)
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finish(
+    coefficients: Vec<f64>,
+    states: Vec<(f64, f64)>,
+    rss: f64,
+    iterations: usize,
+    simulated: &[f64],
+    data: &Data,
+    segs: &[(usize, usize)],
+) -> Option<Solution> {
+    let residuals = segs
+        .iter()
+        .flat_map(|&(a, b)| (a..b).map(move |i| simulated[i] - data.x[i]))
+        .collect();
+    Some(Solution {
+        coefficients,
+        states,
+        rss,
+        iterations,
+        residuals,
+        segments: segs.to_vec(),
+    })
+}
