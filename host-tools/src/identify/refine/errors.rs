@@ -19,7 +19,7 @@ pub(crate) fn standard_errors(shape: &Shape, data: &Data, sol: &Solution) -> Opt
     let (c, segs, states) = (&sol.coefficients, &sol.segments, &sol.states);
     let (mut base, mut plus, mut minus) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let rss0 = rss(shape, c, data, segs, states, &mut base)?;
-    let mut columns = jacobian(shape, c, data, segs, states, k, &mut plus, &mut minus)?;
+    let mut columns = jacobian(shape, c, data, segs, states, k)?;
     let periodic = shape
         .terms
         .iter()

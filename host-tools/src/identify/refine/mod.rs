@@ -194,7 +194,7 @@ pub struct Refined {
 /// Refines `model`'s nonzero coefficients on `data` (two multiple-shooting passes); `None`
 /// when even the starting model diverges on every segment length tried.
 pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refined> {
-    let (shape, start) = Shape::of(model);
+    let (shape, start) = Shape::on(model, data);
     let n = data.len();
     if start.is_empty() || n < 16 {
         return None;
@@ -279,7 +279,7 @@ fn fit_of(rss: f64, x: &[f64]) -> Fit {
 /// of each segment of `segment` samples fitted (`segment ≥ data length`: one free run).
 /// `None` when it diverges.
 pub fn prediction_fit(model: &SimModel, data: &Data, segment: usize) -> Option<Fit> {
-    let (shape, c) = Shape::of(model);
+    let (shape, c) = Shape::on(model, data);
     let segs = segments(0, data.len(), segment.min(data.len()));
     let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
     Some(fit_of(s.rss, data.x))
@@ -288,7 +288,7 @@ pub fn prediction_fit(model: &SimModel, data: &Data, segment: usize) -> Option<F
 /// A free run of `model` over all of `data` from the initial state fitted on its first
 /// `segment` samples (fitting one state to a long free run lands in local minima).
 pub fn free_run_after_fitted_start(model: &SimModel, data: &Data, segment: usize) -> Option<Fit> {
-    let (shape, c) = Shape::of(model);
+    let (shape, c) = Shape::on(model, data);
     let first = [(0, segment.min(data.len()))];
     let start = least_squares(&shape, &c, data, &first, true, 20, None)?;
     free_run_fit(model, data, *start.states.first()?)
@@ -297,7 +297,7 @@ pub fn free_run_after_fitted_start(model: &SimModel, data: &Data, segment: usize
 /// A free run of `model` on `data` from rest (x₀ = v₀ = 0 in recording coordinates) or from
 /// a given state: the error of a simulation from the input alone.
 pub fn free_run_fit(model: &SimModel, data: &Data, start: (f64, f64)) -> Option<Fit> {
-    let (shape, c) = Shape::of(model);
+    let (shape, c) = Shape::on(model, data);
     let n = data.len();
     let mut out = vec![0.0; n];
     let rss = rss(&shape, &c, data, &[(0, n)], &[start], &mut out)?;

@@ -14,6 +14,23 @@ pub(crate) struct Shape {
     pub(crate) terms: Vec<Term>,
     pub(crate) omega: f64,
     pub(crate) offsets: [f64; 2],
+    /// RK4 steps per sample interval ([`substeps_for`]).
+    pub(crate) substeps: usize,
+}
+
+/// The most RK4 steps per sample interval.
+pub(crate) const MAX_SUBSTEPS: usize = 8;
+
+/// RK4 steps per sample interval for a record with `samples_per_period` samples a period at
+/// the top of its band: each step at most 1/128 of that period (RK4's error per period,
+/// about (2π/128)⁴/... ≈ 10⁻⁶ relative, far below any sensor's noise), 1 to [`MAX_SUBSTEPS`].
+pub(crate) fn substeps_for(samples_per_period: Option<f64>) -> usize {
+    match samples_per_period {
+        Some(spp) if spp.is_finite() && spp > 0.0 => {
+            ((128.0 / spp).ceil() as usize).clamp(1, MAX_SUBSTEPS)
+        }
+        _ => 4,
+    }
 }
 
 impl Shape {
@@ -29,9 +46,18 @@ impl Shape {
                 terms,
                 omega: model.omega,
                 offsets: model.offsets,
+                substeps: 4,
             },
             coefficients,
         )
+    }
+
+    /// [`Shape::of`] with as many RK4 steps per sample as `data`'s band needs
+    /// ([`substeps_for`]).
+    pub(crate) fn on(model: &SimModel, data: &Data) -> (Self, Vec<f64>) {
+        let (mut shape, c) = Self::of(model);
+        shape.substeps = substeps_for(super::samples_per_period_at_top(data.x));
+        (shape, c)
     }
 
     pub(crate) fn model(&self, coefficients: &[f64]) -> SimModel {
@@ -78,6 +104,53 @@ impl Shape {
             .any(|t| matches!(t, Term::Sin(_) | Term::Cos(_)))
     }
 
+    /// x'' as [`Shape::acceleration`] gives it, with its partial derivatives ∂x''/∂x and
+    /// ∂x''/∂x' and, into `theta` (one per coefficient, as many as `theta` holds), the terms'
+    /// values: what the variational equations of [`Shape::simulate_sensitivities`] need.
+    fn stage(
+        &self,
+        c: &[f64],
+        phase: (f64, f64),
+        (x, v, u): (f64, f64, f64),
+        theta: &mut [f64],
+    ) -> (f64, f64, f64) {
+        let power = |base: f64, n: u8| (0..n).fold(1.0, |p, _| p * base);
+        let harmonic = |k: u8| {
+            let (s1, c1) = phase;
+            (1..k).fold((s1, c1), |(s, c), _| (s * c1 + c * s1, c * c1 - s * s1))
+        };
+        let (mut a, mut ax, mut av) = (0.0, 0.0, 0.0);
+        for (j, (&term, &c)) in self.terms.iter().zip(c).enumerate() {
+            let (value, dx, dv) = match term {
+                Term::Constant => (1.0, 0.0, 0.0),
+                Term::Monomial { px, pv } => {
+                    let (xp, vp) = (power(x, px), power(v, pv));
+                    let dx = if px > 0 {
+                        f64::from(px) * power(x, px - 1) * vp
+                    } else {
+                        0.0
+                    };
+                    let dv = if pv > 0 {
+                        f64::from(pv) * xp * power(v, pv - 1)
+                    } else {
+                        0.0
+                    };
+                    (xp * vp, dx, dv)
+                }
+                Term::Sin(k) => (harmonic(k).0, 0.0, 0.0),
+                Term::Cos(k) => (harmonic(k).1, 0.0, 0.0),
+                Term::Input => (u, 0.0, 0.0),
+            };
+            a += c * value;
+            ax += c * dx;
+            av += c * dv;
+            if let Some(slot) = theta.get_mut(j) {
+                *slot = value;
+            }
+        }
+        (a, ax, av)
+    }
+
     /// Simulates `data[a..b)` from (x₀, v₀) (recording coordinates) into `out` (b − a
     /// values: out[0] is sample a); false when the state left the finite numbers.
     pub(crate) fn simulate(
@@ -88,57 +161,150 @@ impl Shape {
         start: (f64, f64),
         out: &mut [f64],
     ) -> bool {
-        const SUBSTEPS: usize = 4;
+        self.step_through(c, data, span, start, out, 0, None)
+    }
+
+    /// [`Shape::simulate`], and beside x its derivatives with respect to the first `k`
+    /// coefficients and to the initial state (x₀, v₀): `sens[(i − a)·(k + 2) + p]`. They come
+    /// from the variational equations stepped by the same RK4 as the state, which is the
+    /// exact derivative of the discrete simulation (an explicit Runge–Kutta method commutes
+    /// with differentiation), at about the cost of two simulations whatever `k` is: central
+    /// differences took 2k + 4.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn simulate_sensitivities(
+        &self,
+        c: &[f64],
+        data: &Data,
+        span: (usize, usize),
+        start: (f64, f64),
+        out: &mut [f64],
+        k: usize,
+        sens: &mut [f64],
+    ) -> bool {
+        self.step_through(c, data, span, start, out, k, Some(sens))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn step_through(
+        &self,
+        c: &[f64],
+        data: &Data,
+        span: (usize, usize),
+        start: (f64, f64),
+        out: &mut [f64],
+        k: usize,
+        mut sens: Option<&mut [f64]>,
+    ) -> bool {
+        let substeps = self.substeps.clamp(1, MAX_SUBSTEPS);
         let (a, b) = span;
         let [ox, ov] = self.offsets;
         let (mut x, mut v) = (start.0 - ox, start.1 - ov);
         out[0] = start.0;
+        // Sensitivities: (∂x/∂p, ∂x'/∂p) for the k coefficients, then x₀ and v₀.
+        let m = k + 2;
+        let (mut sx, mut sv) = (vec![0.0; m], vec![0.0; m]);
+        sx[k] = 1.0;
+        sv[k + 1] = 1.0;
+        let mut stages = vec![(0.0, 0.0); 4 * m];
+        let mut theta = vec![0.0; k];
+        if let Some(s) = sens.as_deref_mut() {
+            s[..m].copy_from_slice(&sx);
+        }
         let harmonics = self.has_harmonics();
-        // (sin Ωs, cos Ωs) at the 2·SUBSTEPS + 1 half-steps s = t0 + j·h/2 of a sample
+        // (sin Ωs, cos Ωs) at the 2·substeps + 1 half-steps s = t0 + j·h/2 of a sample
         // interval: one sin/cos pair at t0 and one for the half-step's rotation, instead of
         // one per term and stage (the rotations' rounding, 10⁻¹⁵, is far below the data's).
-        let mut phases = [(0.0, 1.0); 2 * SUBSTEPS + 1];
+        let mut phases = [(0.0, 1.0); 2 * MAX_SUBSTEPS + 1];
+        let last = 2 * substeps;
         let (mut rotation, mut rotation_for) = ((0.0, 1.0), f64::NAN.to_bits());
         for i in a..b.saturating_sub(1) {
             let (t0, t1) = (data.t[i], data.t[i + 1]);
-            let h = (t1 - t0) / SUBSTEPS as f64;
+            let h = (t1 - t0) / substeps as f64;
             if harmonics {
                 // The phase carries on from the last interval's end, recomputed every 64
                 // samples; the rotation is recomputed only when the interval changes.
                 phases[0] = if (i - a) % 64 == 0 {
                     (self.omega * t0).sin_cos()
                 } else {
-                    phases[2 * SUBSTEPS]
+                    phases[last]
                 };
                 if h.to_bits() != rotation_for {
                     rotation = (self.omega * 0.5 * h).sin_cos();
                     rotation_for = h.to_bits();
                 }
                 let (sr, cr) = rotation;
-                for j in 1..phases.len() {
+                for j in 1..=last {
                     let (s, c) = phases[j - 1];
                     phases[j] = (s * cr + c * sr, c * cr - s * sr);
                 }
             }
-            // Stage at half-step j (0..=2·SUBSTEPS).
-            let f = |j: usize, x: f64, v: f64| {
-                let frac = j as f64 / (2 * SUBSTEPS) as f64;
-                self.acceleration(c, phases[j], x, v, data.input(i, frac))
-            };
-            for k in 0..SUBSTEPS {
-                let j = 2 * k;
-                let k1 = (v, f(j, x, v));
-                let k2 = (
-                    v + 0.5 * h * k1.1,
-                    f(j + 1, x + 0.5 * h * k1.0, v + 0.5 * h * k1.1),
-                );
-                let k3 = (
-                    v + 0.5 * h * k2.1,
-                    f(j + 1, x + 0.5 * h * k2.0, v + 0.5 * h * k2.1),
-                );
-                let k4 = (v + h * k3.1, f(j + 2, x + h * k3.0, v + h * k3.1));
-                x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
-                v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            let frac = |j: usize| j as f64 / last as f64;
+            if sens.is_none() {
+                // Stage at half-step j (0..=2·substeps).
+                let f = |j: usize, x: f64, v: f64| {
+                    self.acceleration(c, phases[j], x, v, data.input(i, frac(j)))
+                };
+                for q in 0..substeps {
+                    let j = 2 * q;
+                    let k1 = (v, f(j, x, v));
+                    let k2 = (
+                        v + 0.5 * h * k1.1,
+                        f(j + 1, x + 0.5 * h * k1.0, v + 0.5 * h * k1.1),
+                    );
+                    let k3 = (
+                        v + 0.5 * h * k2.1,
+                        f(j + 1, x + 0.5 * h * k2.0, v + 0.5 * h * k2.1),
+                    );
+                    let k4 = (v + h * k3.1, f(j + 2, x + h * k3.0, v + h * k3.1));
+                    x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+                    v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+                }
+            } else {
+                for q in 0..substeps {
+                    let j = 2 * q;
+                    // The four stages: where each is taken (a fraction of h along the last
+                    // stage's slope) and at which half-step.
+                    let mut slope = (0.0, 0.0);
+                    let mut k_state = [(0.0, 0.0); 4];
+                    for (stage, (along, half)) in
+                        [(0.0, j), (0.5, j + 1), (0.5, j + 1), (1.0, j + 2)]
+                            .into_iter()
+                            .enumerate()
+                    {
+                        let (xs, vs) = (x + along * h * slope.0, v + along * h * slope.1);
+                        let (acc, ax, av) = self.stage(
+                            c,
+                            phases[half],
+                            (xs, vs, data.input(i, frac(half))),
+                            &mut theta,
+                        );
+                        for p in 0..m {
+                            let (dx_prev, dv_prev) = if stage == 0 {
+                                (0.0, 0.0)
+                            } else {
+                                stages[(stage - 1) * m + p]
+                            };
+                            let sxs = sx[p] + along * h * dx_prev;
+                            let svs = sv[p] + along * h * dv_prev;
+                            let forcing = if p < k { theta[p] } else { 0.0 };
+                            stages[stage * m + p] = (svs, ax * sxs + av * svs + forcing);
+                        }
+                        slope = (vs, acc);
+                        k_state[stage] = slope;
+                    }
+                    let [k1, k2, k3, k4] = k_state;
+                    x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+                    v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+                    for p in 0..m {
+                        let d = |s: usize| stages[s * m + p];
+                        sx[p] += h / 6.0 * (d(0).0 + 2.0 * d(1).0 + 2.0 * d(2).0 + d(3).0);
+                        sv[p] += h / 6.0 * (d(0).1 + 2.0 * d(1).1 + 2.0 * d(2).1 + d(3).1);
+                    }
+                }
+                if let Some(s) = sens.as_deref_mut() {
+                    let row = (i + 1 - a) * m;
+                    s[row..row + m].copy_from_slice(&sx);
+                }
             }
             if !(x.is_finite() && v.is_finite()) {
                 return false;
@@ -254,10 +420,11 @@ pub(crate) fn rss(
     sum.is_finite().then_some(sum)
 }
 
-/// The Jacobian of the simulated x, column by column, by central differences: the `k` first
-/// coefficients, then x₀ and v₀ of the segments (a segment's state moves only that segment, so
-/// one pair of simulations gives all segments' columns: two columns for all states).
-#[allow(clippy::too_many_arguments)]
+/// The Jacobian of the simulated x, column by column: the `k` first coefficients, then x₀
+/// and v₀ of the segments (a segment's state moves only that segment, so all segments'
+/// state derivatives fit in two columns), from the variational equations
+/// ([`Shape::simulate_sensitivities`]), the segments in parallel. `None` if a simulation
+/// diverged.
 pub(crate) fn jacobian(
     shape: &Shape,
     c: &[f64],
@@ -265,50 +432,29 @@ pub(crate) fn jacobian(
     segs: &[(usize, usize)],
     states: &[(f64, f64)],
     k: usize,
-    plus: &mut [f64],
-    minus: &mut [f64],
 ) -> Option<Vec<Vec<f64>>> {
     let n = data.len();
-    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(k + 2);
-    for j in 0..k {
-        let h = 1e-6 * c[j].abs().max(1e-300);
-        let mut cp = c.to_vec();
-        cp[j] += h;
-        let mut cm = c.to_vec();
-        cm[j] -= h;
-        rss(shape, &cp, data, segs, states, plus)?;
-        rss(shape, &cm, data, segs, states, minus)?;
-        columns.push((0..n).map(|i| (plus[i] - minus[i]) / (2.0 * h)).collect());
-    }
-    let scale = |x: f64| 1e-6 * x.abs().max(1e-9);
-    for which in 0..2 {
-        let pick = |s: &(f64, f64)| if which == 0 { s.0 } else { s.1 };
-        let hs: Vec<f64> = states
-            .iter()
-            .map(|s| scale(pick(s)).max(if which == 0 { 1e-12 } else { 1e-9 }))
-            .collect();
-        let shifted = |sign: f64| -> Vec<(f64, f64)> {
-            states
-                .iter()
-                .zip(&hs)
-                .map(|(&(x, v), &h)| {
-                    if which == 0 {
-                        (x + sign * h, v)
-                    } else {
-                        (x, v + sign * h)
-                    }
-                })
-                .collect()
-        };
-        rss(shape, c, data, segs, &shifted(1.0), plus)?;
-        rss(shape, c, data, segs, &shifted(-1.0), minus)?;
-        let mut column = vec![0.0; n];
-        for (&(a, b), &h) in segs.iter().zip(&hs) {
-            for i in a..b {
-                column[i] = (plus[i] - minus[i]) / (2.0 * h);
+    let m = k + 2;
+    let pieces: Vec<Option<Vec<f64>>> = segs
+        .par_iter()
+        .zip(states)
+        .map(|(&(a, b), &start)| {
+            let mut out = vec![0.0; b - a];
+            let mut sens = vec![0.0; (b - a) * m];
+            shape
+                .simulate_sensitivities(c, data, (a, b), start, &mut out, k, &mut sens)
+                .then_some(sens)
+        })
+        .collect();
+    let mut columns = vec![vec![0.0; n]; m];
+    for (&(a, b), piece) in segs.iter().zip(pieces) {
+        let piece = piece?;
+        for i in a..b {
+            let row = &piece[(i - a) * m..(i - a + 1) * m];
+            for (column, value) in columns.iter_mut().zip(row) {
+                column[i] = *value;
             }
         }
-        columns.push(column);
     }
     Some(columns)
 }
@@ -330,14 +476,13 @@ pub(crate) fn least_squares(
     let mut states = states.unwrap_or_else(|| initial_states(data, segs));
     let mut base = vec![0.0; n];
     let mut plus = vec![0.0; n];
-    let mut minus = vec![0.0; n];
     let mut current = rss(shape, &c, data, segs, &states, &mut base)?;
     let mut lambda = 1e-3;
     let mut done = 0;
     let mut normal = DMatrix::zeros(p, p);
     for iteration in 0..iterations {
         done = iteration + 1;
-        let columns = jacobian(shape, &c, data, segs, &states, k, &mut plus, &mut minus)?;
+        let columns = jacobian(shape, &c, data, segs, &states, k)?;
         // Normal equations: coefficients × coefficients over every row; a segment's two
         // state columns meet the coefficients and each other on its own rows only.
         normal.fill(0.0);
