@@ -14,6 +14,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::commands::identifier::IdentifierArgs;
 use crate::error::CliError;
+use crate::identify::pipeline::{Failure, Refine};
 use crate::identify::track::{self, TrackOptions};
 use crate::identify::{self, Options, batch};
 use crate::recording::{ColumnNames, Recording};
@@ -226,8 +227,18 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if args.track {
         return run_track(args, &recording, &options);
     }
-    let (mut report, quality) = identify::quality::identify_checked(&recording, &options)?;
+    let refine = if args.no_refine {
+        Refine::No("not refined (--no-refine)")
+    } else {
+        Refine::Yes
+    };
+    let outcome = identify::pipeline::identify(&recording, &options, refine);
     // Each rejected sample, on stderr: the first few named, then how many more.
+    let report = match &outcome {
+        Ok(done) => &done.report,
+        Err(Failure::Withheld(_, _, report)) => report.as_ref(),
+        Err(Failure::Error(e)) => return Err(CliError::Identify(e.clone())),
+    };
     const NAMED: usize = 5;
     for warning in report.rejections.iter().take(NAMED) {
         eprintln!("lssi: warning: {warning}.");
@@ -239,35 +250,28 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
             report.rejections.len()
         );
     }
-    // The warnings of --json: the left-out samples, then why the model is withheld.
-    let mut warnings = identify::batch::warnings(&report);
-    warnings.extend(quality.failures.iter().cloned());
-    if !quality.passed() {
-        if args.json {
-            crate::outln!("{}", identify::json_text(&report, None, &warnings));
+    let done = match outcome {
+        Ok(done) => done,
+        Err(Failure::Withheld(sentence, reasons, report)) => {
+            if args.json {
+                let mut warnings = identify::pipeline::warnings(&report);
+                warnings.extend(reasons);
+                crate::outln!("{}", identify::json_text(&report, None, &warnings));
+            }
+            return Err(CliError::NoDynamics(sentence));
         }
-        return Err(CliError::NoDynamics(identify::quality::refusal(
-            &recording, &quality,
-        )));
-    }
-    // Refinement on simulation error (the default): the refined model is reported when it
-    // predicts the held-out half at least as well; the streaming model stays in
-    // `streaming_terms`.
-    let refined = (!args.no_refine).then(|| {
-        let check = identify::refine::refine_recording(&recording, &report);
-        report.take_refined(&check);
-        identify::refine::Summary::of(&check, report.omega)
-    });
+        Err(Failure::Error(e)) => return Err(CliError::Identify(e)),
+    };
     if args.json {
         crate::outln!(
             "{}",
-            identify::json_text(&report, refined.as_ref(), &warnings)
+            identify::json_text(&done.report, done.refined.as_ref(), &done.warnings)
         );
     } else {
         let note = args.no_refine.then_some("not refined (--no-refine)");
         crate::out!(
             "{}",
-            identify::render_reported(&report, refined.as_ref(), note, &args.unit)
+            identify::render_reported(&done.report, done.refined.as_ref(), note, &args.unit)
         );
     }
     Ok(())

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::error::CliError;
+use crate::identify::pipeline::Refine;
 use crate::identify::{self, Options, Report};
 use crate::recording::{ColumnNames, Recording};
 
@@ -46,38 +47,7 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>, CliError> {
     Ok(files)
 }
 
-/// A recording's model as `lssi identify` reports it.
-#[derive(Clone, Debug)]
-pub struct Identified {
-    /// The report (`terms` refined when refinement was asked for and taken).
-    pub report: Report,
-    /// The refinement's summary, when it ran.
-    pub refined: Option<crate::identify::refine::Summary>,
-    /// The warnings of `--json`: left-out samples, and why the model was not refined.
-    pub warnings: Vec<String>,
-}
-
-/// Why a recording has no model.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Failure {
-    /// It cannot be read or identified (exit status 2): the sentence.
-    Error(String),
-    /// A model was found but withheld by the quality gate (exit status 3): the sentence
-    /// ("no deterministic dynamics found in …") and the gate's reasons.
-    Withheld(String, Vec<String>),
-}
-
-impl Failure {
-    /// The sentence.
-    pub fn sentence(&self) -> &str {
-        match self {
-            Failure::Error(s) | Failure::Withheld(s, _) => s,
-        }
-    }
-}
-
-/// One recording's model, or why it has none.
-pub type Outcome = Result<Identified, Failure>;
+pub use crate::identify::pipeline::{Failure, Identified, Outcome, warnings};
 
 /// Why a model in a batch is the streaming one: refinement is not run on several recordings
 /// at once unless `--refine` asks for it.
@@ -86,30 +56,12 @@ pub const NOT_REFINED: &str =
 
 fn one(path: &Path, columns: &ColumnNames, options: &Options, refine: bool) -> Outcome {
     let recording = Recording::read(path, columns).map_err(|e| Failure::Error(e.to_string()))?;
-    // The same quality gate as one recording: a model that does not explain its data is
-    // withheld, and named.
-    let (mut report, quality) = crate::identify::quality::identify_checked(&recording, options)
-        .map_err(|e| Failure::Error(e.to_string()))?;
-    if !quality.passed() {
-        return Err(Failure::Withheld(
-            crate::identify::quality::refusal(&recording, &quality),
-            quality.failures,
-        ));
-    }
-    let mut warnings = warnings(&report);
-    let refined = if refine {
-        let check = crate::identify::refine::refine_recording(&recording, &report);
-        report.take_refined(&check);
-        Some(crate::identify::refine::Summary::of(&check, report.omega))
+    let refine = if refine {
+        Refine::Yes
     } else {
-        warnings.push(NOT_REFINED.to_owned());
-        None
+        Refine::No(NOT_REFINED)
     };
-    Ok(Identified {
-        report,
-        refined,
-        warnings,
-    })
+    crate::identify::pipeline::identify(&recording, options, refine)
 }
 
 /// Identifies every file in parallel (each through the quality gate, and refined when
@@ -137,20 +89,6 @@ fn equation(report: &Report) -> String {
         .next()
         .unwrap_or_default()
         .to_owned()
-}
-
-/// The rejected samples as `lssi identify` warns of them: the first five, then a count.
-pub fn warnings(report: &Report) -> Vec<String> {
-    const NAMED: usize = 5;
-    let mut out: Vec<String> = report.rejections.iter().take(NAMED).cloned().collect();
-    if report.rejections.len() > NAMED {
-        out.push(format!(
-            "{} more samples were left out ({} in all)",
-            report.rejections.len() - NAMED,
-            report.rejections.len()
-        ));
-    }
-    out
 }
 
 fn csv_field(text: &str) -> String {
@@ -181,7 +119,7 @@ pub fn json_line(file: &str, outcome: &Outcome) -> String {
         Err(Failure::Error(error)) => {
             format!("{}\n", serde_json::json!({ "file": file, "error": error }))
         }
-        Err(Failure::Withheld(error, reasons)) => format!(
+        Err(Failure::Withheld(error, reasons, _)) => format!(
             "{}\n",
             serde_json::json!({ "file": file, "error": error, "withheld": true, "warnings": reasons })
         ),

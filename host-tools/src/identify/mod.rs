@@ -12,6 +12,7 @@
 
 pub mod batch;
 pub mod blemish;
+pub mod pipeline;
 pub mod quality;
 pub mod refine;
 pub mod simulate;

@@ -6,8 +6,8 @@ use serde::Serialize;
 use super::shooting::Shape;
 use super::summary::SupportChange;
 use super::{
-    Data, Fit, Refined, Settings, free_run_after_fitted_start, prediction_fit, refine,
-    samples_per_period_at_top,
+    Data, Fit, Refined, Settings, Windows, free_run_after_fitted_start, refine,
+    samples_per_period_at_top, window_errors,
 };
 use crate::identify::simulate::SimModel;
 use crate::identify::supports::{self, Candidates};
@@ -36,7 +36,15 @@ pub struct Check {
     /// Held-out simulation error (second half; initial state of each segment fitted) of
     /// the streaming model and of the model refined on the first half (the support chosen).
     pub held_out: [Option<Fit>; 2],
-    /// The reported model's free run over the held-out half (one initial state fitted).
+    /// The reported model's prediction error over the comparison's windows ([`Horizon`]).
+    pub prediction: Option<Fit>,
+    /// The horizon of the comparison.
+    pub horizon: Horizon,
+    /// The reported (or, when the streaming model was kept, the refined streaming support's)
+    /// paired comparison with the streaming model.
+    pub paired: Option<Paired>,
+    /// The reported model's free run over the whole held-out half (one initial state fitted):
+    /// long-range behaviour, which a chaotic record does not share with any model.
     pub free_run: Option<Fit>,
     /// Samples per period at the top of x's band (under ~20: derivatives are biased).
     pub samples_per_period: Option<f64>,
@@ -60,12 +68,71 @@ pub struct Tried {
 }
 
 /// How much larger than the best held-out simulation error (RMS) a sparser support's may be
-/// and still be taken: more terms must earn their place by more than this.
+/// and still be taken, beside the paired test ([`Z_BETTER`]): more terms must earn their
+/// place by more than this.
 pub const SUPPORT_PARSIMONY: f64 = 0.002;
 
 /// How many of its standard errors (fitted on the first half) a term that another support
-/// adds to the streaming model's must be away from zero.
+/// adds to the streaming model's must be away from zero; a term a support drops must be
+/// closer to zero than this in the streaming support refined.
 pub const SIGNIFICANT_SE: f64 = 3.0;
+
+/// How many standard errors of the mean paired difference (window by window of the held-out
+/// half) a model's prediction error must be below another's to count as better: a tie keeps
+/// the streaming model.
+pub const Z_BETTER: f64 = 2.0;
+
+/// The largest median NRMSE (%) of the streaming model's windows at which a horizon is taken:
+/// over a longer one the record is not predictable (a chaotic trajectory parts from any
+/// model), and the horizon is halved.
+pub const PREDICTABLE_NRMSE_PERCENT: f64 = 25.0;
+
+/// Two models' prediction errors window by window over the same held-out windows.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Paired {
+    /// Mean over the windows of (first's − second's) residual sum of squares ÷ the first's
+    /// mean: positive when the second predicts better.
+    pub gain: f64,
+    /// The gain over its standard error (the windows' spread ÷ √windows).
+    pub z: f64,
+}
+
+impl Paired {
+    /// `first` against `second`, window by window (`None` when the windows differ).
+    pub fn of(first: &Windows, second: &Windows) -> Option<Self> {
+        let m = first.rss.len();
+        if m == 0 || second.rss.len() != m {
+            return None;
+        }
+        let d: Vec<f64> = first
+            .rss
+            .iter()
+            .zip(&second.rss)
+            .map(|(a, b)| a - b)
+            .collect();
+        let mean = d.iter().sum::<f64>() / m as f64;
+        let scale = first.rss.iter().sum::<f64>() / m as f64;
+        let var = if m > 1 {
+            d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1) as f64
+        } else {
+            f64::INFINITY
+        };
+        let se = (var / m as f64).sqrt();
+        let z = if se > 0.0 {
+            mean / se
+        } else if mean > 0.0 {
+            f64::INFINITY
+        } else if mean < 0.0 {
+            f64::NEG_INFINITY
+        } else {
+            0.0
+        };
+        Some(Self {
+            gain: if scale > 0.0 { mean / scale } else { 0.0 },
+            z,
+        })
+    }
+}
 
 /// Refines on the first half, checks on the second, and refines on everything when the
 /// refined model predicts better (the streaming support alone: [`refine_and_check_among`]
@@ -74,24 +141,53 @@ pub fn refine_and_check(model: &SimModel, data: &Data) -> Check {
     refine_and_check_among(model, &Candidates::none(), data)
 }
 
+/// The horizon of the comparison: two mean periods of x, halved while the streaming model's
+/// median window misses by more than [`PREDICTABLE_NRMSE_PERCENT`] (down to an eighth), and
+/// the streaming model's windows at it; `None` windows when it diverges.
+fn horizon(model: &SimModel, held: &Data, settings: &Settings) -> (usize, Option<Windows>) {
+    let floor = (settings.segment / 8).max(16);
+    let mut length = settings.segment;
+    loop {
+        let windows = window_errors(model, held, length);
+        let followed = windows
+            .as_ref()
+            .is_some_and(|w| w.median_nrmse_percent() <= PREDICTABLE_NRMSE_PERCENT);
+        if followed || length / 2 < floor {
+            return (length, windows);
+        }
+        length /= 2;
+    }
+}
+
+/// One support tried: refined on the first half, and its windows on the second.
+struct Trial {
+    support: Vec<Term>,
+    refined: Option<Refined>,
+    windows: Option<Windows>,
+}
+
 /// Refines the streaming model's support and each of `candidates`' on the first half (each
-/// from its least-squares start), measures their simulation error on the second, takes the
-/// sparsest support within [`SUPPORT_PARSIMONY`] of the best of those that predict the
-/// held-out half at least as well as the streaming model does, and refines it on everything.
+/// from its least-squares start) and predicts the second half over short windows, each from
+/// its own fitted state (the horizon: [`horizon`]). A refined model is taken when its
+/// prediction error is below the streaming model's by [`Z_BETTER`] standard errors of the
+/// paired difference (or, for a sparser support whose dropped terms the refinement finds
+/// insignificant, when it is not above it); among those, the sparsest that the best does not
+/// beat by the same test; it is then refined on everything. A tie keeps the streaming model.
 pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &Data) -> Check {
     let n = data.len();
     let half = n / 2;
     let settings = Settings::for_data(data);
     let (train, held) = (data.slice(0, half), data.slice(half, n));
-    let held_streaming = prediction_fit(model, &held, settings.segment);
-    // Output error needs a system that a model can follow over a segment: a chaotic record
-    // (a bistable harvester hopping between its wells) is not one, and refining on it
-    // trades the coefficients for a fit of the chaos.
-    const PREDICTABLE_NRMSE_PERCENT: f64 = 25.0;
-    let predictable = held_streaming.is_some_and(|f| f.nrmse_percent <= PREDICTABLE_NRMSE_PERCENT);
+    let (length, streaming_windows) = horizon(model, &held, &settings);
+    let predictable = streaming_windows
+        .as_ref()
+        .is_some_and(|w| w.median_nrmse_percent() <= PREDICTABLE_NRMSE_PERCENT);
+    let on_half = Settings {
+        segment: length,
+        long_pass: false,
+        ..settings
+    };
     let (streaming_shape, _) = Shape::of(model);
-    // The streaming support from the streaming coefficients, the others from their
-    // least-squares starts; each refined on the first half and predicting the second.
     let mut starts: Vec<(Vec<Term>, Option<SimModel>)> =
         vec![(streaming_shape.terms.clone(), Some(model.clone()))];
     if predictable {
@@ -100,70 +196,94 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             starts.push((support.clone(), start));
         }
     }
-    let tried: Vec<(Vec<Term>, Option<Refined>, Option<Fit>)> = starts
+    let trials: Vec<Trial> = starts
         .into_iter()
         .map(|(support, start)| {
-            let on_half = start
+            let refined = start
                 .filter(|_| predictable)
-                .and_then(|m| refine(&m, &train, &settings));
-            let fit = on_half
+                .and_then(|m| refine(&m, &train, &on_half));
+            let windows = refined
                 .as_ref()
-                .and_then(|r| prediction_fit(&r.model, &held, settings.segment));
-            (support, on_half, fit)
+                .and_then(|r| window_errors(&r.model, &held, length));
+            Trial {
+                support,
+                refined,
+                windows,
+            }
         })
         .collect();
-    // Over a segment both models usually predict the held-out half to its noise floor, where
-    // their errors differ in the fourth digit either way: the refined model (the consistent
-    // estimate under measurement noise) is taken unless it predicts worse than that.
-    const TOLERANCE: f64 = 1.005;
-    // A term another support adds must be significant where it was fitted (the first half):
-    // its standard errors count the error of the streaming model's Ω, so a sin(Ωt) beside
-    // cos(Ωt) that only makes up for that error (a phase, which the held-out half rewards: by
-    // 6–21 % without noise on the harvester, by up to 0.45 % at 1–5 %, at 0.5–1.1 standard
-    // errors) is not taken; the damping the streaming selection lost at 10 % comes back at
-    // 17–41.
-    let significant = |support: &[Term], refined: &Option<Refined>| {
-        let Some(r) = refined else { return false };
-        r.model
-            .terms
+    let against_streaming: Vec<Option<Paired>> = trials
+        .iter()
+        .map(|t| Paired::of(streaming_windows.as_ref()?, t.windows.as_ref()?))
+        .collect();
+    // A term a support adds must be significant where it was fitted (the first half): its
+    // standard errors count the error of the streaming model's Ω, so a sin(Ωt) beside
+    // cos(Ωt) that only makes up for that error is not taken.
+    let streaming_terms = &trials[0].support;
+    let significance = |t: &Trial, term: Term| -> Option<f64> {
+        let r = t.refined.as_ref()?;
+        let j = r.model.terms.iter().position(|(x, _)| *x == term)?;
+        let se = r.standard_errors.get(j)?;
+        se.is_finite().then(|| r.model.terms[j].1.abs() / se)
+    };
+    let adds_significant = |t: &Trial| {
+        t.support
             .iter()
-            .zip(&r.standard_errors)
-            .filter(|((t, _), _)| !streaming_shape.terms.contains(t) && support.contains(t))
-            .all(|((_, c), se)| se.is_finite() && c.abs() >= SIGNIFICANT_SE * se)
+            .filter(|x| !streaming_terms.contains(x))
+            .all(|&x| significance(t, x).is_some_and(|z| z >= SIGNIFICANT_SE))
     };
-    let eligible = |(support, refined, fit): &(Vec<Term>, Option<Refined>, Option<Fit>)| match (
-        held_streaming,
-        fit,
-    ) {
-        (Some(s), Some(r)) => r.rms <= s.rms * TOLERANCE && significant(support, refined),
-        _ => false,
+    // A term dropped must be insignificant in the streaming support refined.
+    let drops_insignificant = |t: &Trial| {
+        streaming_terms
+            .iter()
+            .filter(|x| !t.support.contains(x))
+            .all(|&x| significance(&trials[0], x).is_some_and(|z| z < SIGNIFICANT_SE))
     };
-    let best = tried
-        .iter()
-        .filter(|t| eligible(t))
-        .filter_map(|(_, _, f)| f.map(|f| f.rms))
-        .fold(f64::INFINITY, f64::min);
-    // The sparsest within the parsimony of the best; among equally sparse, the least error;
-    // the streaming support first among equals (`min_by` keeps the first of equal keys).
-    let pick = tried
-        .iter()
-        .enumerate()
-        .filter(|(_, t)| eligible(t))
-        .filter(|(_, (_, _, f))| f.is_some_and(|f| f.rms <= best * (1.0 + SUPPORT_PARSIMONY)))
-        .min_by(|(_, a), (_, b)| {
-            let key = |t: &(Vec<Term>, Option<Refined>, Option<Fit>)| {
-                (t.0.len(), t.2.map_or(f64::INFINITY, |f| f.rms))
+    let eligible: Vec<usize> = (0..trials.len())
+        .filter(|&i| {
+            let Some(p) = against_streaming[i] else {
+                return false;
             };
-            let (ka, kb) = (key(a), key(b));
-            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+            let sparser = trials[i].support.len() < streaming_terms.len();
+            adds_significant(&trials[i])
+                && (p.z >= Z_BETTER
+                    || (sparser && p.gain >= 0.0 && drops_insignificant(&trials[i])))
         })
-        .map(|(i, _)| i);
-    let held_refined = match pick {
-        Some(i) => tried[i].2,
-        None => tried[0].2,
+        .collect();
+    let error = |i: usize| {
+        trials[i]
+            .windows
+            .as_ref()
+            .map_or(f64::INFINITY, Windows::rms)
     };
-    let better = pick.is_some();
-    let streaming_terms = &tried[0].0;
+    let best = eligible
+        .iter()
+        .copied()
+        .min_by(|&a, &b| error(a).total_cmp(&error(b)));
+    // The sparsest of those the best does not beat (paired test, and the parsimony margin);
+    // among equally sparse, the least error; the streaming support first among equals.
+    let pick = best.and_then(|b| {
+        eligible
+            .iter()
+            .copied()
+            .filter(|&i| {
+                i == b
+                    || error(i) <= error(b) * (1.0 + SUPPORT_PARSIMONY)
+                    || trials[b]
+                        .windows
+                        .as_ref()
+                        .zip(trials[i].windows.as_ref())
+                        .and_then(|(wb, wi)| Paired::of(wi, wb))
+                        .is_some_and(|p| p.z < Z_BETTER)
+            })
+            .min_by(|&a, &b| {
+                trials[a]
+                    .support
+                    .len()
+                    .cmp(&trials[b].support.len())
+                    .then(error(a).total_cmp(&error(b)))
+            })
+    });
     let change = |support: &[Term]| {
         (
             support
@@ -178,24 +298,43 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 .collect::<Vec<Term>>(),
         )
     };
-    let support_change = pick.map_or((vec![], vec![]), |i| change(&tried[i].0));
-    let others = tried.len() - 1;
+    let support_change = pick.map_or((vec![], vec![]), |i| change(&trials[i].support));
+    let held_streaming = streaming_windows.as_ref().map(Windows::fit);
+    let held_refined = trials[pick.unwrap_or(0)].windows.as_ref().map(Windows::fit);
+    let paired = against_streaming[pick.unwrap_or(0)];
+    let others = trials.len() - 1;
+    let seconds = held
+        .t
+        .get(length.min(held.len()).saturating_sub(1))
+        .copied()
+        .unwrap_or(0.0)
+        - held.t.first().copied().unwrap_or(0.0);
+    let windows_count = streaming_windows.as_ref().map_or(0, |w| w.rss.len());
+    let over = format!(
+        "over {windows_count} windows of {length} samples ({seconds:.3} s) of the held-out half, each from its fitted state"
+    );
+    let z_text =
+        |p: Option<Paired>| p.map_or("no paired test".to_owned(), |p| format!("z = {:.1}", p.z));
     let reason = match (predictable, held_streaming, held_refined) {
         (false, Some(s), _) => format!(
-            "not refined: over {} samples the streaming model's simulation misses the held-out half by {:.0} % (NRMSE over {PREDICTABLE_NRMSE_PERCENT} %: the record is not predictable over that horizon)",
-            settings.segment, s.nrmse_percent
+            "not refined: even over {length} samples ({seconds:.3} s) the streaming model's prediction misses the held-out half by {:.0} % (median window over {PREDICTABLE_NRMSE_PERCENT} %: the record is not predictable by this model)",
+            streaming_windows
+                .as_ref()
+                .map_or(s.nrmse_percent, Windows::median_nrmse_percent)
         ),
         (false, None, _) => {
-            "not refined: the streaming model's simulation diverges on the held-out half".to_owned()
+            "not refined: the streaming model's prediction diverges on the held-out half".to_owned()
         }
-        (true, Some(s), Some(r)) if better => {
+        (true, Some(s), Some(r)) if pick.is_some() => {
             let mut text = format!(
-                "refined: held-out simulation error {:.3} % against the streaming model's {:.3} %",
-                r.nrmse_percent, s.nrmse_percent
+                "refined: prediction error {:.3} % against the streaming model's {:.3} % {over} ({})",
+                r.nrmse_percent,
+                s.nrmse_percent,
+                z_text(paired)
             );
             if pick != Some(0) {
-                let on_streaming = match tried[0].2 {
-                    Some(f) => format!("{:.3} %", f.nrmse_percent),
+                let on_streaming = match &trials[0].windows {
+                    Some(w) => format!("{:.3} %", w.nrmse_percent()),
                     None => "no fit".to_owned(),
                 };
                 text.push_str(&format!(
@@ -212,30 +351,37 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             text
         }
         (true, Some(s), Some(r)) => format!(
-            "not refined: held-out simulation error {:.3} % refined against {:.3} % streaming",
-            r.nrmse_percent, s.nrmse_percent
+            "streaming model kept: the refined one predicts {:.3} % against {:.3} % {over} ({}; {Z_BETTER} needed)",
+            r.nrmse_percent,
+            s.nrmse_percent,
+            z_text(paired)
         ),
         _ => "not refined: the refinement did not converge".to_owned(),
     };
-    let supports = tried
+    let supports = trials
         .iter()
-        .map(|(terms, refined, held_out)| Tried {
-            terms: terms.clone(),
-            held_out: *held_out,
-            added_significance: refined.as_ref().map_or(vec![], |r| {
+        .map(|t| Tried {
+            terms: t.support.clone(),
+            held_out: t.windows.as_ref().map(Windows::fit),
+            added_significance: t.refined.as_ref().map_or(vec![], |r| {
                 r.model
                     .terms
                     .iter()
                     .zip(&r.standard_errors)
-                    .filter(|((t, _), _)| !streaming_shape.terms.contains(t))
+                    .filter(|((x, _), _)| !streaming_shape.terms.contains(x))
                     .map(|((_, c), se)| c.abs() / se)
                     .collect()
             }),
         })
         .collect();
-    let chosen_half = pick.and_then(|i| tried.into_iter().nth(i).and_then(|t| t.1));
+    let on_all = Settings {
+        segment: length,
+        long_pass: length == settings.segment,
+        ..settings
+    };
+    let chosen_half = pick.and_then(|i| trials.into_iter().nth(i).and_then(|t| t.refined));
     let (model, standard_errors, chosen) = match chosen_half {
-        Some(half_model) => match refine(&half_model.model, data, &settings) {
+        Some(half_model) => match refine(&half_model.model, data, &on_all) {
             Some(all) => (all.model, Some(all.standard_errors), Chosen::Refined),
             None => (
                 half_model.model,
@@ -250,18 +396,37 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
     } else {
         (vec![], vec![])
     };
-    let free_run = free_run_after_fitted_start(&model, &held, settings.segment);
+    let prediction = window_errors(&model, &held, length).map(|w| w.fit());
+    let free_run = free_run_after_fitted_start(&model, &held, length);
     Check {
         model,
         standard_errors,
         chosen,
         reason,
         held_out: [held_streaming, held_refined],
+        prediction,
+        horizon: Horizon {
+            samples: length,
+            seconds,
+            windows: windows_count,
+        },
+        paired,
         free_run,
         samples_per_period: samples_per_period_at_top(data.x),
         supports,
         support_change,
     }
+}
+
+/// The horizon the models were compared over.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Horizon {
+    /// Samples per window.
+    pub samples: usize,
+    /// Seconds per window.
+    pub seconds: f64,
+    /// Windows of the held-out half.
+    pub windows: usize,
 }
 
 impl Check {

@@ -59,8 +59,8 @@ mod summary;
 mod tests;
 
 pub use choose::{
-    Check, Chosen, SIGNIFICANT_SE, SUPPORT_PARSIMONY, Tried, refine_and_check,
-    refine_and_check_among, refine_recording,
+    Check, Chosen, Horizon, PREDICTABLE_NRMSE_PERCENT, Paired, SIGNIFICANT_SE, SUPPORT_PARSIMONY,
+    Tried, Z_BETTER, refine_and_check, refine_and_check_among, refine_recording,
 };
 pub use summary::{Summary, SupportChange, TermSummary};
 
@@ -123,6 +123,9 @@ pub struct Settings {
     pub segment: usize,
     /// Levenberg–Marquardt iterations per pass, at most.
     pub iterations: usize,
+    /// Whether a second pass with segments four times as long follows (kept when it fits
+    /// about as well per sample): the final refinement makes it, candidates do not.
+    pub long_pass: bool,
 }
 
 impl Settings {
@@ -132,6 +135,7 @@ impl Settings {
         Self {
             segment: ((2.0 * period) as usize).max(64),
             iterations: 20,
+            long_pass: true,
         }
     }
 }
@@ -237,7 +241,12 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
     let first = segments(0, n, settings.segment);
     let one = pass(&start, &first)?;
     let second_segs = segments(0, n, settings.segment.saturating_mul(4));
-    let best = match pass(&one.coefficients, &second_segs) {
+    let two = if settings.long_pass && second_segs.len() < first.len() {
+        pass(&one.coefficients, &second_segs)
+    } else {
+        None
+    };
+    let best = match two {
         // Longer segments see more of the dynamics; keep them unless they fit worse per sample.
         Some(two) if two.rss <= one.rss * 1.1 => Solution {
             iterations: one.iterations + two.iterations,
@@ -283,6 +292,71 @@ pub fn prediction_fit(model: &SimModel, data: &Data, segment: usize) -> Option<F
     let segs = segments(0, data.len(), segment.min(data.len()));
     let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
     Some(fit_of(s.rss, data.x))
+}
+
+/// Short-horizon prediction errors: `data` cut into windows of `length` samples, the model
+/// simulated over each from its own fitted initial state (its coefficients fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Windows {
+    /// Residual sum of squares of each window.
+    pub rss: Vec<f64>,
+    /// Samples in all windows.
+    pub samples: usize,
+    /// Standard deviation of x over the data.
+    pub sd: f64,
+}
+
+impl Windows {
+    /// NRMSE over all windows, %.
+    pub fn nrmse_percent(&self) -> f64 {
+        100.0 * self.rms() / self.sd
+    }
+
+    /// RMS error over all windows, in x's unit.
+    pub fn rms(&self) -> f64 {
+        (self.rss.iter().sum::<f64>() / self.samples.max(1) as f64).sqrt()
+    }
+
+    /// The median window's NRMSE, %.
+    pub fn median_nrmse_percent(&self) -> f64 {
+        let per = self.samples as f64 / self.rss.len().max(1) as f64;
+        let mut each: Vec<f64> = self.rss.iter().map(|r| (r / per).sqrt()).collect();
+        each.sort_by(f64::total_cmp);
+        100.0 * each.get(each.len() / 2).copied().unwrap_or(f64::NAN) / self.sd
+    }
+
+    /// As a [`Fit`].
+    pub fn fit(&self) -> Fit {
+        Fit {
+            nrmse_percent: self.nrmse_percent(),
+            rms: self.rms(),
+        }
+    }
+}
+
+/// [`Windows`] of `model` on `data`, windows of `length` samples; `None` when a simulation
+/// diverges.
+pub fn window_errors(model: &SimModel, data: &Data, length: usize) -> Option<Windows> {
+    let (shape, c) = Shape::on(model, data);
+    let segs = segments(0, data.len(), length.min(data.len()));
+    let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
+    let mut at = 0;
+    let rss = segs
+        .iter()
+        .map(|&(a, b)| {
+            let r: f64 = s.residuals[at..at + (b - a)].iter().map(|e| e * e).sum();
+            at += b - a;
+            r
+        })
+        .collect();
+    let n = data.len().max(1) as f64;
+    let mean = data.x.iter().sum::<f64>() / n;
+    let sd = (data.x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    Some(Windows {
+        rss,
+        samples: at,
+        sd,
+    })
 }
 
 /// A free run of `model` over all of `data` from the initial state fitted on its first

@@ -482,6 +482,12 @@ pub(crate) fn least_squares(
     let mut normal = DMatrix::zeros(p, p);
     for iteration in 0..iterations {
         done = iteration + 1;
+        if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+            eprintln!(
+                "lm k={k} segs={} it={iteration} rss={current:.6e}",
+                segs.len()
+            );
+        }
         let columns = jacobian(shape, &c, data, segs, &states, k)?;
         // Normal equations: coefficients × coefficients over every row; a segment's two
         // state columns meet the coefficients and each other on its own rows only.

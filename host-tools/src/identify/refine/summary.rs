@@ -2,7 +2,7 @@
 
 use serde::Serialize;
 
-use super::{Check, Chosen, Fit};
+use super::{Check, Chosen, Fit, Horizon, Paired};
 
 /// One refined term, as `lssi identify --refine` reports it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -30,7 +30,16 @@ pub struct Summary {
     pub held_out_streaming: Option<Fit>,
     /// The same for the model refined on the first half.
     pub held_out_refined: Option<Fit>,
-    /// The reported model's free run over the held-out half (one fitted initial state).
+    /// The horizon of the comparison: windows of the held-out half, each predicted from its
+    /// own fitted state.
+    pub horizon: Horizon,
+    /// The reported model's prediction error over those windows.
+    pub prediction: Option<Fit>,
+    /// The paired comparison of the refined model with the streaming one over those windows
+    /// (`gain`: the fraction of the streaming model's error removed; `z`: in standard errors).
+    pub paired: Option<Paired>,
+    /// The reported model's free run over the whole held-out half (one fitted initial state):
+    /// long-range behaviour, which a chaotic record shares with no model.
     pub free_run: Option<Fit>,
     /// Samples per period at the top of x's band (under ~20: derivatives are biased, which
     /// is what refinement corrects).
@@ -74,6 +83,9 @@ impl Summary {
             terms,
             held_out_streaming: check.held_out[0],
             held_out_refined: check.held_out[1],
+            horizon: check.horizon,
+            prediction: check.prediction,
+            paired: check.paired,
             free_run: check.free_run,
             samples_per_period: check.samples_per_period,
             support_changed: check.support_changed(omega),
@@ -99,10 +111,21 @@ impl Summary {
                 list(&change.removed)
             ));
         }
+        if let Some(f) = self.prediction {
+            out.push_str(&format!(
+                "  prediction of the held-out half over {:.3} s ({} windows of {} samples, each from its fitted state): NRMSE {:.2} %, RMS {:.4e} {unit}\n",
+                self.horizon.seconds, self.horizon.windows, self.horizon.samples, f.nrmse_percent, f.rms
+            ));
+        }
         if let Some(f) = self.free_run {
             out.push_str(&format!(
-                "  free run over the held-out half: NRMSE {:.2} %, RMS {:.4e} {unit}\n",
-                f.nrmse_percent, f.rms
+                "  free run over the whole held-out half from one fitted state: NRMSE {:.2} %{}\n",
+                f.nrmse_percent,
+                if f.nrmse_percent > 2.0 * self.prediction.map_or(f64::INFINITY, |p| p.nrmse_percent) && f.nrmse_percent > 10.0 {
+                    " (it parts from the recording: long-range prediction is not what this record allows)"
+                } else {
+                    ""
+                }
             ));
         }
         if let Some(spp) = self.samples_per_period

@@ -1,0 +1,98 @@
+//! The one way a recording in memory becomes what `lssi identify` reports, whichever entry
+//! asks (one file, a batch, the Python package): configure → stream (in both precisions) →
+//! gate → candidates → choose (refinement on simulation error, unless asked not to) → report.
+//!
+//! Reading and repairing the file come before (`crate::recording`, `crate::identify::blemish`);
+//! printing after (`crate::identify::render_reported`, `crate::identify::json_text`, `batch`).
+//! A file too large to hold is streamed by `crate::identify::stream` through the same
+//! identifier and gate.
+
+use crate::identify::refine::{self, Summary};
+use crate::identify::{Options, Report, quality};
+use crate::recording::Recording;
+
+/// Whether refinement on simulation error runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refine {
+    /// Refine, and report the refined model when it predicts the held-out half better.
+    Yes,
+    /// The streaming model, with the reason it was not refined as a warning.
+    No(&'static str),
+}
+
+/// A recording's model as `lssi identify` reports it.
+#[derive(Clone, Debug)]
+pub struct Identified {
+    /// The report (`terms` refined when refinement ran and was taken).
+    pub report: Report,
+    /// The refinement's summary, when it ran.
+    pub refined: Option<Summary>,
+    /// The warnings of `--json`: left-out samples, and why the model was not refined.
+    pub warnings: Vec<String>,
+}
+
+/// Why a recording has no model.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Failure {
+    /// It cannot be read or identified (exit status 2): the sentence.
+    Error(String),
+    /// A model was found but withheld by the quality gate (exit status 3): the sentence
+    /// ("no deterministic dynamics found in …"), the gate's reasons and the withheld report.
+    Withheld(String, Vec<String>, Box<Report>),
+}
+
+impl Failure {
+    /// The sentence.
+    pub fn sentence(&self) -> &str {
+        match self {
+            Failure::Error(s) | Failure::Withheld(s, ..) => s,
+        }
+    }
+}
+
+/// One recording's model, or why it has none.
+pub type Outcome = Result<Identified, Failure>;
+
+/// The rejected samples as `lssi identify` warns of them: the first five, then a count.
+pub fn warnings(report: &Report) -> Vec<String> {
+    const NAMED: usize = 5;
+    let mut out: Vec<String> = report.rejections.iter().take(NAMED).cloned().collect();
+    if report.rejections.len() > NAMED {
+        out.push(format!(
+            "{} more samples were left out ({} in all)",
+            report.rejections.len() - NAMED,
+            report.rejections.len()
+        ));
+    }
+    out
+}
+
+/// A recording through every stage: the model `lssi identify` reports for it.
+pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Outcome {
+    let (mut report, quality) =
+        quality::identify_checked(recording, options).map_err(|e| Failure::Error(e.to_string()))?;
+    if !quality.passed() {
+        return Err(Failure::Withheld(
+            quality::refusal(recording, &quality),
+            quality.failures,
+            Box::new(report),
+        ));
+    }
+    let mut warnings = warnings(&report);
+    let refined = match refine {
+        Refine::Yes => {
+            let check = refine::refine_recording(recording, &report);
+            report.take_refined(&check);
+            Some(Summary::of(&check, report.omega))
+        }
+        Refine::No(why) => {
+            warnings.push(why.to_owned());
+            None
+        }
+    };
+    Ok(Identified {
+        report,
+        refined,
+        warnings,
+    })
+}
