@@ -3,15 +3,26 @@
 
 use std::path::PathBuf;
 
-use lssi_core::{Config, Identifier, Real, Sample};
+use lssi_core::{Config, Identifier, Real, Sample, Term};
 pub use lssi_host::identify::Options;
 pub use lssi_host::identify::Report;
-use lssi_host::identify::simulate::{self, SimModel};
+use lssi_host::identify::pipeline::{self, Failure, Refine};
+pub use lssi_host::identify::refine::Summary;
+use lssi_host::identify::refine::Chosen;
+pub use lssi_host::identify::simulate::SimModel;
+use lssi_host::identify::simulate;
 use lssi_host::identify::{self, TERM_CAPACITY};
 use lssi_host::recording::{ColumnNames, Recording};
 
 /// The ring-buffer capacity `lssi identify` runs with.
 pub use lssi_host::identify::WINDOW_CAPACITY;
+
+/// Why a model was not refined, as `lssi identify --no-refine` says it (in its `--json`
+/// warnings and its text report): the package's `refine=False`, and a stream's model.
+pub const NOT_REFINED: &str = "not refined (--no-refine)";
+
+/// The unit of x `lssi identify` writes in its text report unless `--unit` is given.
+pub const DEFAULT_UNIT: &str = "[x]";
 
 /// The columns of a recording held in memory.
 pub struct Columns {
@@ -25,6 +36,32 @@ pub struct Columns {
     pub v: Option<Vec<f64>>,
     /// Excitation, when measured.
     pub u: Option<Vec<f64>>,
+}
+
+impl Columns {
+    /// Every column has x's length (the host library indexes them together).
+    pub fn check(&self) -> Result<(), String> {
+        lengths(
+            self.x.len(),
+            &[
+                ("t", Some(self.t.len())),
+                ("v", self.v.as_ref().map(Vec::len)),
+                ("u", self.u.as_ref().map(Vec::len)),
+            ],
+        )
+    }
+}
+
+/// `Err` naming the first column whose length is not `n` (x's).
+pub fn lengths(n: usize, columns: &[(&str, Option<usize>)]) -> Result<(), String> {
+    for (name, len) in columns {
+        if let Some(len) = len
+            && *len != n
+        {
+            return Err(format!("{name} has {len} samples but x has {n}."));
+        }
+    }
+    Ok(())
 }
 
 fn recording(c: Columns) -> Recording {
@@ -59,6 +96,7 @@ pub fn read(path: &str) -> Result<Columns, String> {
 
 /// `lssi identify`'s configuration for these columns and options, and whether Ω was estimated.
 pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), String> {
+    c.check()?;
     let r = recording(Columns {
         name: c.name.clone(),
         t: c.t.clone(),
@@ -69,24 +107,83 @@ pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), Strin
     identify::configure(&r, options).map_err(|e| e.0)
 }
 
-/// `lssi identify` on columns: its report (the `--json` object), the configuration and the
-/// warnings `--json` ends with. A model that fails the quality gate is an error, with the
-/// sentence `lssi identify` prints ("no deterministic dynamics found in …").
-pub fn fit(c: Columns, options: &Options) -> Result<(Report, Config, Vec<String>), String> {
+/// What `lssi identify` reports for a recording, and what the package needs besides.
+pub struct Fitted {
+    /// The report (`terms` the reported model: refined when refinement ran and was taken).
+    pub report: Report,
+    /// The refinement's summary, when it ran.
+    pub refined: Option<Summary>,
+    /// The warnings `--json` ends with.
+    pub warnings: Vec<String>,
+    /// The configuration the identifier ran with.
+    pub config: Config,
+    /// The reported model, to simulate.
+    pub model: SimModel,
+}
+
+/// `lssi identify` on columns through the command's one pipeline
+/// ([`lssi_host::identify::pipeline::identify`]): refined on simulation error when `refine`
+/// (the command's default), else the streaming model with the `--no-refine` warning. A model
+/// the quality gate withholds is an error, with the sentence `lssi identify` prints ("no
+/// deterministic dynamics found in …").
+pub fn fit(c: Columns, options: &Options, refine: bool) -> Result<Fitted, String> {
+    c.check()?;
     let r = recording(c);
     let (config, _) = identify::configure(&r, options).map_err(|e| e.0)?;
-    let (report, quality) = identify::quality::identify_checked(&r, options).map_err(|e| e.0)?;
-    if !quality.passed() {
-        return Err(identify::quality::refusal(&r, &quality));
+    let refine = if refine {
+        Refine::Yes
+    } else {
+        Refine::No(NOT_REFINED)
+    };
+    let done = pipeline::identify(&r, options, refine).map_err(|failure| match failure {
+        Failure::Error(sentence) | Failure::Withheld(sentence, ..) => sentence,
+    })?;
+    let model = reported_model(&done.report, &config)?;
+    Ok(Fitted {
+        report: done.report,
+        refined: done.refined,
+        warnings: done.warnings,
+        config,
+        model,
+    })
+}
+
+/// The reported model as a [`SimModel`]. `Report::model` is the streaming model's (the
+/// refined one is reported by name only, in `Report::terms`), so a refined model's terms are
+/// found by name in the library; refinement keeps Ω and the offsets.
+pub fn reported_model(report: &Report, config: &Config) -> Result<SimModel, String> {
+    let streaming = SimModel::from_report(report);
+    if report.reported != Chosen::Refined {
+        return Ok(streaming);
     }
-    let warnings = warnings(&report);
-    Ok((report, config, warnings))
+    let library = lssi_core::Library::<TERM_CAPACITY>::new(&config.library)
+        .map_err(|e| format!("the library of the configuration is not usable: {e}."))?;
+    let named: Vec<(String, Term)> = library
+        .terms()
+        .iter()
+        .map(|t| (t.name(report.omega).to_string(), *t))
+        .collect();
+    let terms = report
+        .terms
+        .iter()
+        .map(|reported| {
+            let mut found = named.iter().filter(|(name, _)| *name == reported.term);
+            match (found.next(), found.next()) {
+                (Some((_, term)), None) => Ok((*term, reported.coef)),
+                _ => Err(format!(
+                    "internal error: the refined model's term {} is not one term of the library; please report it.",
+                    reported.term
+                )),
+            }
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(SimModel { terms, ..streaming })
 }
 
 /// The warnings `lssi identify --json` ends with for a report that passed the gate: the
 /// left-out samples.
 pub fn warnings(report: &Report) -> Vec<String> {
-    identify::batch::warnings(report)
+    pipeline::warnings(report)
 }
 
 /// The identifier `lssi identify` streams through, in precision `T`.
@@ -129,24 +226,15 @@ pub fn sample<T: Real>(t: f64, x: f64, v: Option<f64>, u: Option<f64>) -> Sample
     }
 }
 
-/// The JSON `lssi identify --json` prints for a report and its warnings.
-pub fn json(report: &Report, warnings: &[String]) -> String {
-    let mut text = serde_json::to_string(report).unwrap_or_default();
-    text.pop();
-    text.push_str(",\"warnings\":");
-    text.push_str(&serde_json::Value::from(warnings.to_vec()).to_string());
-    text.push('}');
-    text
+/// The JSON `lssi identify --json` prints (`--no-refine` when `refined` is `None`).
+pub fn json(report: &Report, refined: Option<&Summary>, warnings: &[String]) -> String {
+    identify::json_text(report, refined, warnings)
 }
 
-/// The text `lssi identify` prints for a report.
-pub fn text(report: &Report) -> String {
-    identify::render(report)
-}
-
-/// The selected model's equation as one line (the first line of the text report).
-pub fn equation(report: &Report) -> String {
-    text(report).lines().next().unwrap_or_default().to_string()
+/// The text `lssi identify` prints (`--no-refine` when `refined` is `None`), x in `unit`.
+pub fn text(report: &Report, refined: Option<&Summary>, unit: &str) -> String {
+    let note = refined.is_none().then_some(NOT_REFINED);
+    identify::render_reported(report, refined, note, unit)
 }
 
 /// The library's term names in order, for the report's Ω.
@@ -161,16 +249,15 @@ pub fn feature_names(config: &Config) -> Vec<String> {
     }
 }
 
-/// A free run of the report's model on the grid `t` from (x0, v0), with the excitation `u`
-/// interpolated between samples when the model has a `u` term.
+/// A free run of `model` on the grid `t` from (x0, v0), with the excitation `u` interpolated
+/// between samples when the model has a `u` term.
 pub fn simulate(
-    report: &Report,
+    model: &SimModel,
     t: &[f64],
     u: Option<&[f64]>,
     x0: f64,
     v0: f64,
 ) -> (Vec<f64>, Vec<f64>) {
-    let model = SimModel::from_report(report);
-    let s = simulate::simulate(&model, t, u, (x0, v0), 4);
+    let s = simulate::simulate(model, t, u, (x0, v0), 4);
     (s.x, s.v)
 }

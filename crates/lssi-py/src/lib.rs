@@ -1,19 +1,99 @@
 //! The compiled part of the `lssi` Python package (`lssi._lssi`): the identification that
-//! `lssi identify` runs, from NumPy arrays or a file, and a streaming identifier. The
+//! `lssi identify` runs (its one pipeline: refined on simulation error unless asked not to),
+//! from NumPy arrays, a reader for its recording files, and a streaming identifier. The
 //! Python layer (`python/lssi/__init__.py`) adds the PySINDy-like `Model` and `Stream`
 //! classes, input checks and pandas support on top of it.
+//!
+//! Nothing here panics into Python: every entry point runs under [`guarded`], which turns a
+//! panic of the Rust code (a bug, for inputs that got past the checks) into a `RuntimeError`
+//! with a sentence, and inputs that would index out of bounds (columns of unequal lengths)
+//! are `ValueError`s before they reach the host library. Error sentences from the host
+//! library name the command's flags; [`python_words`] names the Python arguments instead.
 
 mod host;
 
+use std::cell::RefCell;
+use std::panic::{self, AssertUnwindSafe};
+
 use lssi_core::{Config, PolyFamily, Real};
 use numpy::{PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
-use host::{Columns, HostIdentifier, Options, Report};
+use host::{Columns, HostIdentifier, Options, Report, SimModel, Summary};
+
+/// What went wrong on the Rust side: bad input (a sentence for a `ValueError`) or a panic
+/// (a bug: a sentence for a `RuntimeError`).
+enum Error {
+    Input(String),
+    Panic(String),
+}
+
+impl From<String> for Error {
+    fn from(s: String) -> Self {
+        Error::Input(s)
+    }
+}
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> PyErr {
+        match e {
+            Error::Input(s) => PyValueError::new_err(python_words(&s)),
+            Error::Panic(s) => PyRuntimeError::new_err(s),
+        }
+    }
+}
+
+thread_local! {
+    /// Where the last panic on this thread happened, recorded by the module's panic hook.
+    static PANIC_AT: RefCell<Option<String>> = const { RefCell::new(None) };
+}
+
+/// Runs `f`, a panic in it becoming [`Error::Panic`] with a sentence (what was being done,
+/// the panic's message and where it happened) instead of a `pyo3_runtime.PanicException`.
+fn guarded<R>(doing: &str, f: impl FnOnce() -> Result<R, String>) -> Result<R, Error> {
+    match panic::catch_unwind(AssertUnwindSafe(f)) {
+        Ok(result) => result.map_err(Error::Input),
+        Err(payload) => {
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "no message".into());
+            let at = PANIC_AT
+                .with(|p| p.borrow_mut().take())
+                .map(|at| format!(" at {at}"))
+                .unwrap_or_default();
+            Err(Error::Panic(format!(
+                "lssi failed while {doing}: an internal error ({message}{at}); this is a bug, please report it with the data and options that caused it."
+            )))
+        }
+    }
+}
+
+/// The host library's sentences with the command's flags replaced by the Python arguments
+/// (`give --omega.` → `give omega=… (rad/s).`, `--omega 50 rad/s` → `omega=50 rad/s`).
+fn python_words(message: &str) -> String {
+    const FLAGS: [(&str, &str); 9] = [
+        ("give --omega", "give omega=… (rad/s)"),
+        ("--omega ", "omega="),
+        ("--omega", "omega"),
+        ("--poly-order", "poly_order"),
+        ("--harmonics", "harmonics"),
+        ("--family", "family"),
+        ("--memory", "memory"),
+        ("--no-smoothing", "smoothing=False"),
+        ("--f64", "f32=False"),
+    ];
+    let mut out = message.to_string();
+    for (flag, argument) in FLAGS {
+        out = out.replace(flag, argument);
+    }
+    out.replace("--f32", "f32=True")
+}
 
 fn value_error(message: String) -> PyErr {
-    PyValueError::new_err(message)
+    Error::Input(message).into()
 }
 
 fn family(name: &str) -> PyResult<PolyFamily> {
@@ -57,27 +137,40 @@ fn vector(a: Option<PyReadonlyArray1<'_, f64>>) -> Option<Vec<f64>> {
 #[pyclass(module = "lssi._lssi", frozen)]
 struct Fit {
     report: Report,
+    /// The refinement's summary, when it ran (`None`: `--no-refine`, or a stream's model).
+    refined: Option<Summary>,
     config: Config,
     omega_estimated: bool,
     /// What `lssi identify --json` ends with.
     warnings: Vec<String>,
+    /// The reported model (the refined one when it was taken), to simulate.
+    model: SimModel,
+}
+
+fn named(terms: &[lssi_host::identify::TermReport]) -> Vec<(String, f64)> {
+    terms.iter().map(|t| (t.term.clone(), t.coef)).collect()
 }
 
 #[pymethods]
 impl Fit {
-    /// The `lssi identify --json` object, as a string.
+    /// The `lssi identify --json` object, as a string (`--no-refine` when not refined).
     fn json(&self) -> String {
-        host::json(&self.report, &self.warnings)
+        host::json(&self.report, self.refined.as_ref(), &self.warnings)
     }
 
-    /// The `lssi identify` text report.
-    fn text(&self) -> String {
-        host::text(&self.report)
+    /// The `lssi identify` text report, x in `unit` (the command's `--unit`).
+    #[pyo3(signature = (unit=host::DEFAULT_UNIT))]
+    fn text(&self, unit: &str) -> String {
+        host::text(&self.report, self.refined.as_ref(), unit)
     }
 
-    /// The selected equation, one line.
+    /// The reported equation, one line (the text report's first).
     fn equation(&self) -> String {
-        host::equation(&self.report)
+        self.text(host::DEFAULT_UNIT)
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .to_string()
     }
 
     /// The library's term names, in order.
@@ -85,16 +178,48 @@ impl Fit {
         host::feature_names(&self.config)
     }
 
-    /// The selected model's active terms and coefficients (physical units).
+    /// The reported model's active terms and coefficients (physical units): the JSON's
+    /// `terms`.
     fn terms(&self) -> Vec<(String, f64)> {
-        self.report
-            .model
-            .iter()
-            .map(|(t, c)| (t.name(self.report.omega).to_string(), *c))
-            .collect()
+        named(&self.report.terms)
     }
 
-    /// Free run on the grid `t` from (x0, v0); `u` the measured excitation on the same grid.
+    /// The streaming identifier's model (a device's): the JSON's `streaming_terms`.
+    fn streaming_terms(&self) -> Vec<(String, f64)> {
+        named(&self.report.streaming_terms)
+    }
+
+    /// Which model `terms` is: "refined" or "streaming".
+    fn reported(&self) -> &'static str {
+        match self.report.reported {
+            lssi_host::identify::refine::Chosen::Refined => "refined",
+            lssi_host::identify::refine::Chosen::Streaming => "streaming",
+        }
+    }
+
+    /// The reported model's standard errors, term by term, when it is the refined one.
+    fn standard_errors(&self) -> Option<Vec<(String, f64)>> {
+        (self.reported() == "refined").then(|| {
+            self.report
+                .terms
+                .iter()
+                .map(|t| (t.term.clone(), t.se.unwrap_or(f64::NAN)))
+                .collect()
+        })
+    }
+
+    /// Whether the reported model has an excitation term `u` (a simulation needs u).
+    fn uses_input(&self) -> bool {
+        self.model.uses_input()
+    }
+
+    /// The channels the identifier was configured for: (velocity v, excitation u).
+    fn channels(&self) -> (bool, bool) {
+        (self.config.channels.velocity, self.config.channels.input)
+    }
+
+    /// Free run of the reported model on the grid `t` from (x0, v0); `u` the measured
+    /// excitation on the same grid.
     #[pyo3(signature = (t, x0, v0, u=None))]
     fn simulate<'py>(
         &self,
@@ -103,18 +228,45 @@ impl Fit {
         x0: f64,
         v0: f64,
         u: Option<PyReadonlyArray1<'py, f64>>,
-    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>) {
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
         let t = t.as_array().to_vec();
         let u = vector(u);
-        let report = &self.report;
-        let (x, v) = py.detach(|| host::simulate(report, &t, u.as_deref(), x0, v0));
-        (PyArray1::from_vec(py, x), PyArray1::from_vec(py, v))
+        let model = &self.model;
+        let (x, v) = py.detach(|| {
+            guarded("simulating", || {
+                if let Some(u) = &u
+                    && u.len() != t.len()
+                {
+                    return Err(format!("u has {} samples but t has {}.", u.len(), t.len()));
+                }
+                Ok(host::simulate(model, &t, u.as_deref(), x0, v0))
+            })
+        })?;
+        Ok((PyArray1::from_vec(py, x), PyArray1::from_vec(py, v)))
     }
 }
 
-/// `lssi identify` on arrays (all of one length; `v` and `u` optional).
+fn columns(
+    name: String,
+    t: PyReadonlyArray1<'_, f64>,
+    x: PyReadonlyArray1<'_, f64>,
+    v: Option<PyReadonlyArray1<'_, f64>>,
+    u: Option<PyReadonlyArray1<'_, f64>>,
+) -> Columns {
+    Columns {
+        name,
+        t: t.as_array().to_vec(),
+        x: x.as_array().to_vec(),
+        v: vector(v),
+        u: vector(u),
+    }
+}
+
+/// `lssi identify` on arrays (all of one length; `v` and `u` optional), `name` standing for
+/// the file in its sentences; refined on simulation error unless `refine` is false
+/// (`--no-refine`).
 #[pyfunction]
-#[pyo3(signature = (t, x, v, u, omega, harmonics, poly_order, family, f32, smoothing, memory))]
+#[pyo3(signature = (t, x, v, u, omega, harmonics, poly_order, family, f32, smoothing, memory, refine=true, name="array"))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
@@ -129,48 +281,20 @@ fn fit(
     f32: bool,
     smoothing: bool,
     memory: Option<f64>,
+    refine: bool,
+    name: &str,
 ) -> PyResult<Fit> {
     let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
-    let columns = Columns {
-        name: "array".into(),
-        t: t.as_array().to_vec(),
-        x: x.as_array().to_vec(),
-        v: vector(v),
-        u: vector(u),
-    };
-    run(py, columns, &options)
-}
-
-fn run(py: Python<'_>, columns: Columns, options: &Options) -> PyResult<Fit> {
-    let (report, config, warnings) = py
-        .detach(|| host::fit(columns, options))
-        .map_err(value_error)?;
+    let columns = columns(name.to_string(), t, x, v, u);
+    let fitted = py.detach(|| guarded("identifying", || host::fit(columns, &options, refine)))?;
     Ok(Fit {
-        omega_estimated: report.omega_estimated,
-        report,
-        config,
-        warnings,
+        omega_estimated: fitted.report.omega_estimated,
+        report: fitted.report,
+        refined: fitted.refined,
+        config: fitted.config,
+        warnings: fitted.warnings,
+        model: fitted.model,
     })
-}
-
-/// `lssi identify FILE` (columns t, x and, when the header has them, v and u).
-#[pyfunction]
-#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory))]
-#[allow(clippy::too_many_arguments)]
-fn identify_file(
-    py: Python<'_>,
-    path: &str,
-    omega: Option<f64>,
-    harmonics: u8,
-    poly_order: u8,
-    family: &str,
-    f32: bool,
-    smoothing: bool,
-    memory: Option<f64>,
-) -> PyResult<Fit> {
-    let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
-    let columns = py.detach(|| host::read(path)).map_err(value_error)?;
-    run(py, columns, &options)
 }
 
 /// Reads a recording file: (t, x, v or None, u or None).
@@ -185,7 +309,7 @@ fn read_recording<'py>(
     Option<Bound<'py, PyArray1<f64>>>,
     Option<Bound<'py, PyArray1<f64>>>,
 )> {
-    let c = py.detach(|| host::read(path)).map_err(value_error)?;
+    let c = py.detach(|| guarded("reading the recording", || host::read(path)))?;
     Ok((
         PyArray1::from_vec(py, c.t),
         PyArray1::from_vec(py, c.x),
@@ -194,8 +318,7 @@ fn read_recording<'py>(
     ))
 }
 
-/// The configuration `lssi identify` would choose for these arrays, as a `Fit`-less handle:
-/// a streaming identifier configured from a calibration block.
+/// A streaming identifier in either precision.
 enum Precision {
     F32(Box<HostIdentifier<f32>>),
     F64(Box<HostIdentifier<f64>>),
@@ -206,6 +329,8 @@ enum Precision {
 struct RawStream {
     identifier: Precision,
     omega_estimated: bool,
+    /// Set when a call panicked: the identifier may be half-updated, so it is not used again.
+    broken: bool,
 }
 
 fn new_identifier<T: Real>(config: Config) -> PyResult<Box<HostIdentifier<T>>> {
@@ -233,8 +358,8 @@ fn push_all<T: Real>(
 
 #[pymethods]
 impl RawStream {
-    /// A streaming identifier with the configuration a fit ran with (the same results as that
-    /// fit on the same samples).
+    /// A streaming identifier with the configuration a fit ran with (the same streaming
+    /// model as that fit on the same samples).
     #[staticmethod]
     fn like(fit: &Fit) -> PyResult<Self> {
         Self::with(
@@ -264,20 +389,26 @@ impl RawStream {
         memory: Option<f64>,
     ) -> PyResult<Self> {
         let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
-        let columns = Columns {
-            name: "stream".into(),
-            t: t.as_array().to_vec(),
-            x: x.as_array().to_vec(),
-            v: vector(v),
-            u: vector(u),
-        };
-        let (config, estimated) = py
-            .detach(|| host::configure(&columns, &options))
-            .map_err(value_error)?;
+        let columns = columns("stream".into(), t, x, v, u);
+        let (config, estimated) = py.detach(|| {
+            guarded("configuring the stream", || {
+                host::configure(&columns, &options)
+            })
+        })?;
         Self::with(config, f32, estimated)
     }
 
-    /// Feeds a block; returns how many of its samples the identifier rejected.
+    /// The channels the identifier takes besides x: (velocity v, excitation u).
+    fn channels(&self) -> (bool, bool) {
+        let channels = match &self.identifier {
+            Precision::F32(id) => id.config().channels,
+            Precision::F64(id) => id.config().channels,
+        };
+        (channels.velocity, channels.input)
+    }
+
+    /// Feeds a block (t, x and the channels the identifier takes, all of one length);
+    /// returns how many of its samples the identifier rejected.
     #[pyo3(signature = (t, x, v=None, u=None))]
     fn push(
         &mut self,
@@ -286,40 +417,82 @@ impl RawStream {
         x: PyReadonlyArray1<'_, f64>,
         v: Option<PyReadonlyArray1<'_, f64>>,
         u: Option<PyReadonlyArray1<'_, f64>>,
-    ) -> usize {
+    ) -> PyResult<usize> {
+        self.usable()?;
         let (t, x, v, u) = (
             t.as_array().to_vec(),
             x.as_array().to_vec(),
             vector(v),
             vector(u),
         );
+        let (velocity, input) = self.channels();
         let identifier = &mut self.identifier;
-        py.detach(|| match identifier {
-            Precision::F32(id) => push_all(id, &t, &x, v.as_deref(), u.as_deref()),
-            Precision::F64(id) => push_all(id, &t, &x, v.as_deref(), u.as_deref()),
-        })
+        let result = py.detach(|| {
+            guarded("feeding the stream", || {
+                host::lengths(
+                    x.len(),
+                    &[
+                        ("t", Some(t.len())),
+                        ("v", v.as_ref().map(Vec::len)),
+                        ("u", u.as_ref().map(Vec::len)),
+                    ],
+                )?;
+                channel("v", "a measured velocity", velocity, v.is_some())?;
+                channel("u", "an excitation", input, u.is_some())?;
+                Ok(match identifier {
+                    Precision::F32(id) => push_all(id, &t, &x, v.as_deref(), u.as_deref()),
+                    Precision::F64(id) => push_all(id, &t, &x, v.as_deref(), u.as_deref()),
+                })
+            })
+        });
+        self.broken = matches!(result, Err(Error::Panic(_)));
+        Ok(result?)
     }
 
     /// The model now (a screening on request: it changes nothing that follows).
     fn model(&mut self, py: Python<'_>) -> PyResult<Fit> {
+        self.usable()?;
         let estimated = self.omega_estimated;
         let identifier = &mut self.identifier;
-        let (report, config) = py
-            .detach(|| match identifier {
-                Precision::F32(id) => {
-                    host::report_now(id, estimated, "stream").map(|r| (r, *id.config()))
-                }
-                Precision::F64(id) => {
-                    host::report_now(id, estimated, "stream").map(|r| (r, *id.config()))
-                }
+        let result = py.detach(|| {
+            guarded("screening the stream", || {
+                let (report, config) = match identifier {
+                    Precision::F32(id) => {
+                        host::report_now(id, estimated, "stream").map(|r| (r, *id.config()))
+                    }
+                    Precision::F64(id) => {
+                        host::report_now(id, estimated, "stream").map(|r| (r, *id.config()))
+                    }
+                }?;
+                let model = host::reported_model(&report, &config)?;
+                Ok((report, config, model))
             })
-            .map_err(value_error)?;
+        });
+        self.broken = matches!(result, Err(Error::Panic(_)));
+        let (report, config, model) = result?;
+        let mut warnings = host::warnings(&report);
+        warnings.push(host::NOT_REFINED.to_string());
         Ok(Fit {
-            warnings: host::warnings(&report),
+            warnings,
             report,
+            refined: None,
             config,
             omega_estimated: estimated,
+            model,
         })
+    }
+}
+
+/// `Err` when a block's channel does not match the identifier's.
+fn channel(name: &str, what: &str, configured: bool, given: bool) -> Result<(), String> {
+    match (configured, given) {
+        (false, true) => Err(format!(
+            "{name}: this stream was configured without {what} {name}, so a block with {name} cannot be fed in (the identifier would reject every sample); push the block without {name}, or start a stream whose calibration block (or model) has {name}."
+        )),
+        (true, false) => Err(format!(
+            "{name}: this stream was configured with {what} {name}, so every block needs {name} (the identifier would reject every sample without it)."
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -333,17 +506,33 @@ impl RawStream {
         Ok(Self {
             identifier,
             omega_estimated,
+            broken: false,
         })
+    }
+
+    fn usable(&self) -> PyResult<()> {
+        if self.broken {
+            return Err(PyRuntimeError::new_err(
+                "this stream failed earlier with an internal error and cannot be used again; start a new one.",
+            ));
+        }
+        Ok(())
     }
 }
 
-/// The compiled module.
+/// The compiled module. Its panic hook records where a panic happened (for [`guarded`]'s
+/// sentence) instead of printing it: the sentence reaches Python as the exception.
 #[pymodule]
 fn _lssi(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    panic::set_hook(Box::new(|info| {
+        let at = info
+            .location()
+            .map(|l| format!("{}:{}", l.file(), l.line()));
+        PANIC_AT.with(|p| *p.borrow_mut() = at);
+    }));
     m.add_class::<Fit>()?;
     m.add_class::<RawStream>()?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
-    m.add_function(wrap_pyfunction!(identify_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_recording, m)?)?;
     Ok(())
 }

@@ -11,27 +11,28 @@ from conftest import DATA, DUFFING_TRUTH, duffing
 
 @pytest.mark.parametrize("path", DATA, ids=lambda p: p.name)
 @pytest.mark.parametrize("f32", [False, True])
-def test_identify_equals_the_command(cli, path, f32):
+@pytest.mark.parametrize("refine", [True, False])
+def test_identify_equals_the_command(cli, path, f32, refine):
+    """The same object as `lssi identify --json`: refined by default, as the command."""
     precision = "--f32" if f32 else "--f64"
-    # The Python package gives the streaming identifier's model (a device's); the command
-    # refines it on simulation error by default, so it is compared with --no-refine.
-    expected = cli("identify", path, "--json", precision, "--no-refine").strip()
-    assert lssi.identify(path, f32=f32).to_json() == expected
+    flags = [] if refine else ["--no-refine"]
+    expected = cli("identify", path, "--json", precision, *flags).strip()
+    assert lssi.identify(path, f32=f32, refine=refine).to_json() == expected
 
 
 @pytest.mark.parametrize("path", [p for p in DATA if p.name.startswith("eveh-")], ids=lambda p: p.name)
 def test_fit_on_arrays_equals_the_command(cli, path):
     expected = cli("identify", path, "--json", "--f64", "--family", "odd", "--no-refine").strip()
     t, x, v, u = lssi.read_recording(path)
-    m = lssi.Model(family="odd").fit(x, t=t, v=v, u=u)
+    m = lssi.Model(family="odd", refine=False).fit(x, t=t, v=v, u=u)
     assert m.to_json() == expected
     frame = pd.DataFrame({"t": t, "x": x})
-    assert lssi.Model(family="odd").fit(frame).to_json() == expected
+    assert lssi.Model(family="odd", refine=False).fit(frame).to_json() == expected
 
 
 def test_dt_instead_of_t_and_the_api():
     t, x = duffing()
-    m = lssi.Model(omega=1.2).fit(x, dt=t[1] - t[0])
+    m = lssi.Model(omega=1.2, refine=False).fit(x, dt=t[1] - t[0])
     coefficients = m.coefficients()
     assert list(coefficients) == m.feature_names()
     for name, true in DUFFING_TRUTH.items():
@@ -45,12 +46,17 @@ def test_dt_instead_of_t_and_the_api():
 
 @pytest.mark.parametrize("f32", [False, True])
 def test_stream_like_a_fit_gives_the_fit(f32):
+    """A stream gives the streaming model: the fit's with refine=False, and the
+    streaming_coefficients() of a refined fit."""
     t, x = duffing(seed=3, noise=0.01)
-    m = lssi.Model(omega=1.2, f32=f32).fit(x, t=t)
-    s = m.stream()
-    for i in range(0, len(t), 777):
-        s.push(x[i:i + 777], t=t[i:i + 777])
-    assert s.model().to_json() == m.to_json()
+    m = lssi.Model(omega=1.2, f32=f32, refine=False).fit(x, t=t)
+    refined = lssi.Model(omega=1.2, f32=f32).fit(x, t=t)
+    assert refined.streaming_coefficients() == m.coefficients()
+    for like in (m, refined):
+        s = like.stream()
+        for i in range(0, len(t), 777):
+            s.push(x[i:i + 777], t=t[i:i + 777])
+        assert s.model().to_json() == m.to_json()
 
 
 def test_a_calibrated_stream_identifies_online():

@@ -1,24 +1,36 @@
 """lssi: streaming sparse identification of a vibration energy harvester's equation of motion.
 
-The same identifier as the ``lssi`` command and the firmware (Rust, in f32 or f64), behind
-a PySINDy-like API::
+The same identifier and pipeline as the ``lssi`` command (Rust, in f64 or f32), behind a
+PySINDy-like API::
 
     import numpy as np, lssi
-    m = lssi.Model(poly_order=3, harmonics=1)
+    m = lssi.Model(family="odd")
     m.fit(x, t=t)                  # x'' = f(x, x', t) from the displacement alone
-    m.print()                      # x'' = 336.68 x - 0.40135 v - 7.9552e8 x^3 + ...
-    m.coefficients()               # {"1": 0.0, "x": 336.68, ...}
+    m.print()                      # what `lssi identify --f64` prints
+    m.coefficients()               # {"1": 0.0, "x": 336.64, ...}
     x_sim, v_sim = m.simulate((x[0], 0.0), t)
 
-``Model.to_json()`` is the object ``lssi identify --no-refine --json`` prints for the same data and
-options. ``Stream`` identifies online, block by block. ``lssi.dask.identify_many`` maps the
-identification over a Dask cluster.
+By default the model is the one ``lssi identify --f64`` reports: the streaming identifier's
+model refined on simulation error, taken when it predicts the held-out half better (with
+standard errors, ``Model.standard_errors()``). ``Model(refine=False)`` gives the streaming
+model a device computes (``lssi identify --f64 --no-refine``), in a fraction of the time;
+it is always in ``Model.streaming_coefficients()``. ``Model.to_json()`` is the object the
+command prints with ``--json`` for the same data and options. ``Stream`` identifies online,
+block by block (the streaming model). ``lssi.dask.identify_many`` maps the identification
+over a Dask cluster.
+
+Times may be seconds, or dates and times (NumPy ``datetime64``, pandas Timestamps,
+``datetime``): those become seconds from the first sample. Errors are ``ValueError`` (bad
+data) or ``TypeError`` (an argument of the wrong type), each naming the Python argument; an
+internal error of the Rust code is a ``RuntimeError``, never a crash.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+import numbers
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -32,8 +44,142 @@ Fit = _lssi.Fit
 #: held-out half once the derivative window is full).
 MIN_SAMPLES = 64
 
+#: The version of the state ``Model`` pickles.
+_PICKLE_VERSION = 1
+
+
+# -- checking arguments ---------------------------------------------------------------------
+def _is_bool(value) -> bool:
+    return isinstance(value, (bool, np.bool_))
+
+
+def _integer(name: str, value, lo: int, hi: int) -> int:
+    if _is_bool(value) or not isinstance(value, (numbers.Integral, np.integer)):
+        raise TypeError(f"{name} must be an integer from {lo} to {hi}, not {value!r}.")
+    if not lo <= value <= hi:
+        raise ValueError(f"{name} must be an integer from {lo} to {hi}, not {value!r}.")
+    return int(value)
+
+
+def _positive(name: str, value, what: str) -> Optional[float]:
+    if value is None:
+        return None
+    if _is_bool(value) or not isinstance(value, (numbers.Real, np.integer, np.floating)):
+        raise TypeError(f"{name} must be {what}, not {value!r}.")
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be {what}, not {value!r}.")
+    return value
+
+
+def _flag(name: str, value) -> bool:
+    if not _is_bool(value):
+        raise TypeError(f"{name} must be True or False, not {value!r}.")
+    return bool(value)
+
+
+def _seconds(name: str, value, what: str) -> float:
+    """A duration: a number of seconds, or a ``timedelta``/``timedelta64``."""
+    if isinstance(value, _dt.timedelta):
+        value = value.total_seconds()
+    elif isinstance(value, np.timedelta64):
+        value = value / np.timedelta64(1, "s")
+    return _positive(name, value, what)
+
+
+# -- checking and converting columns ------------------------------------------------------
+def _datetimes(name: str, a) -> Optional[np.ndarray]:
+    """``a`` as datetime64[ns] when it holds dates and times (NumPy datetime64, pandas
+    Timestamps or a datetime column, with a time zone or not, ``datetime`` objects), else
+    None. Times with a time zone are taken in UTC."""
+    module = type(a).__module__ or ""
+    if module.startswith("pandas"):
+        import pandas as pd
+
+        if isinstance(a, (pd.Series, pd.Index)) and pd.api.types.is_datetime64_any_dtype(a.dtype):
+            s = pd.Series(a)
+            if s.dt.tz is not None:
+                s = s.dt.tz_convert("UTC").dt.tz_localize(None)
+            return s.to_numpy(dtype="datetime64[ns]")
+    if isinstance(a, np.ndarray) and a.dtype.kind == "M":
+        return a.astype("datetime64[ns]")
+    if isinstance(a, np.ndarray) and a.dtype.kind != "O":
+        return None
+    if not isinstance(a, np.ndarray):
+        try:
+            arr = np.asarray(a)
+        except (TypeError, ValueError):
+            return None
+        if arr.dtype.kind == "M":
+            return arr.astype("datetime64[ns]")
+        if arr.dtype.kind != "O":
+            return None
+    else:
+        arr = a
+    items = arr.ravel()
+    if not items.size or not all(isinstance(e, (_dt.datetime, np.datetime64)) for e in items):
+        return None
+    aware = [isinstance(e, _dt.datetime) and e.tzinfo is not None for e in items]
+    if any(aware) and not all(aware):
+        raise ValueError(f"{name} mixes times with a time zone and times without one.")
+    out = np.empty(items.size, dtype="datetime64[ns]")
+    for i, e in enumerate(items):
+        if isinstance(e, _dt.datetime):
+            if e.tzinfo is not None:
+                e = e.astimezone(_dt.timezone.utc).replace(tzinfo=None)
+            value = getattr(e, "value", None)  # a pandas Timestamp: nanoseconds since 1970
+            if isinstance(value, (int, np.integer)) and hasattr(e, "tz_localize"):
+                out[i] = np.datetime64(int(value), "ns")
+                continue
+        out[i] = np.datetime64(e, "ns")
+    return out.reshape(arr.shape)
+
+
+def _times(a, n: Optional[int] = None, origin: Optional[np.datetime64] = None, name: str = "t"):
+    """Times as seconds, and the origin of dates and times (None for seconds): datetime64,
+    Timestamps and datetimes become seconds from ``origin`` (default: the first sample);
+    timedelta64 and timedeltas, seconds."""
+    stamps = _datetimes(name, a)
+    if stamps is None:
+        arr = a if isinstance(a, np.ndarray) else None
+        if arr is None:
+            try:
+                arr = np.asarray(a)
+            except (TypeError, ValueError):
+                arr = None
+        if arr is not None and arr.dtype.kind == "m":
+            return _column(name, arr / np.timedelta64(1, "s"), n), None
+        if arr is not None and arr.dtype.kind == "O" and arr.size and all(
+            isinstance(e, _dt.timedelta) for e in arr.ravel()
+        ):
+            seconds = np.array([e.total_seconds() for e in arr.ravel()]).reshape(arr.shape)
+            return _column(name, seconds, n), None
+        return _column(name, a, n), None
+    stamps = stamps.reshape(-1) if stamps.ndim == 2 and 1 in stamps.shape else stamps
+    if stamps.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array, not one of shape {stamps.shape}.")
+    missing = np.flatnonzero(np.isnat(stamps))
+    if missing.size:
+        raise ValueError(
+            f"{name} has {missing.size} missing time(s) (NaT), the first at index {missing[0]}; "
+            "remove or fill them first."
+        )
+    if not stamps.size:
+        return _column(name, np.empty(0), n), None
+    origin = stamps[0] if origin is None else origin
+    seconds = (stamps - origin).astype(np.int64) / 1e9
+    return _column(name, seconds, n), origin
+
 
 def _column(name: str, a: Any, n: Optional[int] = None) -> np.ndarray:
+    kind = getattr(getattr(a, "dtype", None), "kind", None)
+    if kind in ("M", "m") or _datetimes(name, a) is not None:
+        raise ValueError(
+            f"{name} holds dates or times; only t may (as seconds from the first sample), "
+            f"{name} must be numbers."
+        )
+    if kind == "c":
+        raise ValueError(f"{name} must be real numbers, not complex ones.")
     try:
         arr = np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
@@ -53,15 +199,27 @@ def _column(name: str, a: Any, n: Optional[int] = None) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
-def _columns(x, t=None, v=None, u=None, dt=None, minimum: int = MIN_SAMPLES):
-    """Checks and converts (x, t, v, u); a pandas DataFrame in x supplies its t/x/v/u columns."""
+def _increasing(t: np.ndarray, name: str = "t") -> None:
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise ValueError(
+            f"{name} must increase: {name}[{i + 1}] = {t[i + 1]} does not come after "
+            f"{name}[{i}] = {t[i]}."
+        )
+
+
+def _columns(x, t=None, v=None, u=None, dt=None, minimum: int = MIN_SAMPLES,
+             origin: Optional[np.datetime64] = None):
+    """Checks and converts (x, t, v, u); a pandas DataFrame in x supplies its t/x/v/u
+    columns. Returns (t, x, v, u, origin), origin the datetime t = 0 stands for (or None)."""
     if hasattr(x, "columns") and hasattr(x, "__getitem__"):
         frame = x
         if "x" not in frame.columns:
             raise ValueError(f"the DataFrame has no column 'x' (it has {list(frame.columns)}).")
         x = frame["x"].to_numpy()
         if t is None and "t" in frame.columns:
-            t = frame["t"].to_numpy()
+            t = frame["t"]
         if v is None and "v" in frame.columns:
             v = frame["v"].to_numpy()
         if u is None and "u" in frame.columns:
@@ -73,33 +231,15 @@ def _columns(x, t=None, v=None, u=None, dt=None, minimum: int = MIN_SAMPLES):
     if t is None:
         if dt is None:
             raise ValueError("give the sample times t, or the sample period dt.")
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, not {dt}.")
-        t = np.arange(n, dtype=np.float64) * float(dt)
+        step = _seconds("dt", dt, "a positive number of seconds")
+        t = np.arange(n, dtype=np.float64) * step
     elif dt is not None:
         raise ValueError("give either t or dt, not both.")
-    t = _column("t", t, n)
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0])
-        raise ValueError(
-            f"t must increase: t[{i + 1}] = {t[i + 1]} does not come after t[{i}] = {t[i]}."
-        )
+    t, origin = _times(t, n, origin)
+    _increasing(t)
     v = None if v is None else _column("v", v, n)
     u = None if u is None else _column("u", u, n)
-    return t, x, v, u
-
-
-def _options(self) -> Tuple:
-    return (
-        self.omega,
-        self.harmonics,
-        self.poly_order,
-        self.family,
-        self.f32,
-        self.smoothing,
-        self.memory,
-    )
+    return t, x, v, u, origin
 
 
 class Model:
@@ -109,7 +249,14 @@ class Model:
     (``--harmonics``: sin/cos(kΩt) for k = 1..H), ``omega`` (``--omega``, rad/s; None:
     estimated from the data), ``family`` (None or "all", "families", "odd"), ``f32``
     (compute in f32 as a device does; the default here is f64, ``--f64``), ``smoothing``
-    (False: ``--no-smoothing``), ``memory`` (``--memory``, seconds).
+    (False: ``--no-smoothing``), ``memory`` (``--memory``, seconds), ``refine`` (False:
+    ``--no-refine``, the streaming model a device computes; True, the default: refined on
+    simulation error and reported when it predicts better, as the command does).
+
+    A fitted model pickles: it keeps its samples, and unpickling fits them again (seconds
+    for 10⁵ samples), checking that the model is the one pickled (a ValueError if this
+    version of lssi identifies another). A ``Stream``'s model keeps no samples and does not
+    pickle.
     """
 
     def __init__(
@@ -121,35 +268,57 @@ class Model:
         f32: bool = False,
         smoothing: bool = True,
         memory: Optional[float] = None,
+        refine: bool = True,
     ) -> None:
-        if not (isinstance(poly_order, (int, np.integer)) and 1 <= poly_order <= 9):
-            raise ValueError(f"poly_order must be an integer from 1 to 9, not {poly_order!r}.")
-        if not (isinstance(harmonics, (int, np.integer)) and 0 <= harmonics <= 8):
-            raise ValueError(f"harmonics must be an integer from 0 to 8, not {harmonics!r}.")
-        if omega is not None and not (np.isfinite(omega) and omega > 0):
-            raise ValueError(f"omega must be a positive angular frequency in rad/s, not {omega!r}.")
-        if memory is not None and not (np.isfinite(memory) and memory > 0):
-            raise ValueError(f"memory must be a positive time in seconds, not {memory!r}.")
+        self.poly_order = _integer("poly_order", poly_order, 1, 9)
+        self.harmonics = _integer("harmonics", harmonics, 0, 8)
+        self.omega = _positive("omega", omega, "a positive angular frequency in rad/s (or None)")
+        self.memory = _positive("memory", memory, "a positive time in seconds (or None)")
+        if family is not None and not isinstance(family, str):
+            raise TypeError(f"family must be None, 'all', 'families' or 'odd', not {family!r}.")
         if family is not None and family not in ("all", "families", "odd"):
             raise ValueError(f"family must be 'all', 'families' or 'odd', not {family!r}.")
-        self.poly_order = int(poly_order)
-        self.harmonics = int(harmonics)
-        self.omega = None if omega is None else float(omega)
         self.family = family or "all"
-        self.f32 = bool(f32)
-        self.smoothing = bool(smoothing)
-        self.memory = None if memory is None else float(memory)
+        self.f32 = _flag("f32", f32)
+        self.smoothing = _flag("smoothing", smoothing)
+        self.refine = _flag("refine", refine)
         self._fit: Optional[Fit] = None
+        # (name, t, x, v, u) of the fit, for pickling; None for a Stream's model.
+        self._data: Optional[Tuple] = None
+        # The date and time t = 0 stands for, when the fit's t held dates and times.
+        self._t_origin: Optional[np.datetime64] = None
+
+    def _options(self) -> Tuple:
+        return (
+            self.omega,
+            self.harmonics,
+            self.poly_order,
+            self.family,
+            self.f32,
+            self.smoothing,
+            self.memory,
+        )
+
+    def _option_dict(self) -> Dict[str, Any]:
+        return dict(poly_order=self.poly_order, harmonics=self.harmonics, omega=self.omega,
+                    family=self.family, f32=self.f32, smoothing=self.smoothing,
+                    memory=self.memory, refine=self.refine)
 
     # -- fitting -------------------------------------------------------------------------
     def fit(self, x, t=None, v=None, u=None, dt=None) -> "Model":
         """Identifies the equation from displacement ``x`` (and a measured velocity ``v``,
-        excitation ``u`` when there are), sampled at times ``t`` or every ``dt`` seconds.
-        ``x`` may be a pandas DataFrame with columns t, x and optionally v, u.
+        excitation ``u`` when there are), sampled at times ``t`` (seconds, or dates and
+        times: then seconds from the first sample) or every ``dt`` seconds. ``x`` may be a
+        pandas DataFrame with columns t, x and optionally v, u.
         Raises ValueError for bad input or when no model comes out."""
-        t, x, v, u = _columns(x, t, v, u, dt)
-        self._fit = _lssi.fit(t, x, v, u, *_options(self))
+        t, x, v, u, origin = _columns(x, t, v, u, dt)
+        self._run("array", t, x, v, u)
+        self._t_origin = origin
         return self
+
+    def _run(self, name: str, t, x, v, u) -> None:
+        self._fit = _lssi.fit(t, x, v, u, *self._options(), refine=self.refine, name=name)
+        self._data = (name, t, x, v, u)
 
     def _fitted(self) -> Fit:
         if self._fit is None:
@@ -158,32 +327,45 @@ class Model:
 
     # -- results -------------------------------------------------------------------------
     def equation(self) -> str:
-        """The selected equation as one line, e.g. ``x'' = 336.68 x - 0.40135 v + ...``."""
+        """The reported equation as one line, ``lssi identify``'s first (with ± a standard
+        error on each coefficient when refined)."""
         return self._fitted().equation()
 
-    def print(self) -> None:
-        """Prints the report ``lssi identify --no-refine`` prints (equation, configuration, sweep)."""
-        print(self._fitted().text(), end="")
+    def print(self, unit: str = "[x]") -> None:
+        """Prints the report ``lssi identify`` prints (``--no-refine``'s when refine=False),
+        x in ``unit`` (its ``--unit``)."""
+        if not isinstance(unit, str):
+            raise TypeError(f"unit must be a string, not {unit!r}.")
+        print(self._fitted().text(unit), end="")
 
     def feature_names(self) -> List[str]:
         """The library's term names, in order (``1``, ``x``, ``v``, ``x^2``, …, ``cos(21.4t)``)."""
         return self._fitted().feature_names()
 
+    def _dense(self, terms) -> Dict[str, float]:
+        active = dict(terms)
+        return {name: active.get(name, 0.0) for name in self._fitted().feature_names()}
+
     def coefficients(self) -> Dict[str, float]:
-        """Every library term's coefficient in physical units (0 for inactive terms)."""
-        fit = self._fitted()
-        active = dict(fit.terms())
-        return {name: active.get(name, 0.0) for name in fit.feature_names()}
+        """Every library term's coefficient in physical units (0 for inactive terms), of the
+        reported model: the refined one when it was taken (``report()["model"]`` says)."""
+        return self._dense(self._fitted().terms())
+
+    def streaming_coefficients(self) -> Dict[str, float]:
+        """As ``coefficients()``, of the streaming identifier's model (what a device computes
+        for the same samples; the JSON's ``streaming_terms``)."""
+        return self._dense(self._fitted().streaming_terms())
 
     def standard_errors(self) -> Optional[Dict[str, float]]:
-        """Standard errors of the coefficients: not available yet (the identifier does not
-        compute them), so None."""
-        self._fitted()
-        return None
+        """The standard error of each active term's coefficient when the reported model is the
+        refined one (NaN where it could not be computed); None for the streaming model,
+        which has none."""
+        se = self._fitted().standard_errors()
+        return None if se is None else dict(se)
 
     def to_json(self) -> str:
-        """The object ``lssi identify --no-refine --json`` prints for the same data and options
-        (the streaming model; the command refines it on simulation error by default)."""
+        """The object ``lssi identify --json`` prints for the same data and options
+        (``--f64`` unless f32, ``--no-refine`` when refine=False)."""
         return self._fitted().json()
 
     def report(self) -> Dict[str, Any]:
@@ -192,24 +374,43 @@ class Model:
 
     # -- using the model -----------------------------------------------------------------
     def simulate(self, x0, t, u=None) -> Tuple[np.ndarray, np.ndarray]:
-        """Free run from ``x0`` (x, or (x, v)) on the times ``t``; ``u`` the excitation on
-        the same grid when the model has a ``u`` term. Returns (x, v); NaN after a
-        divergence."""
+        """Free run of the reported model from ``x0`` (x, or (x, v)) on the times ``t``
+        (seconds, or dates and times as for ``fit``); ``u`` the excitation on the same grid,
+        needed when the model has a ``u`` term. Returns (x, v); NaN after a divergence."""
         fit = self._fitted()
         if np.ndim(x0) == 0:
-            x_init, v_init = float(x0), 0.0
+            x_init, v_init = x0, 0.0
         else:
             if len(x0) != 2:
                 raise ValueError(f"x0 must be x or (x, v), not {x0!r}.")
-            x_init, v_init = float(x0[0]), float(x0[1])
-        t = _column("t", t)
-        u = None if u is None else _column("u", u, t.shape[0])
+            x_init, v_init = x0[0], x0[1]
+        try:
+            x_init, v_init = float(x_init), float(v_init)
+        except (TypeError, ValueError):
+            raise TypeError(f"x0 must be a number or a pair of numbers (x, v), not {x0!r}.") from None
+        if not (np.isfinite(x_init) and np.isfinite(v_init)):
+            raise ValueError(f"x0 must be finite, not {x0!r}.")
+        t, _ = _times(t, origin=self._t_origin)
+        _increasing(t)
+        u = self._input(u, t.shape[0], "simulate")
         return fit.simulate(t, x_init, v_init, u)
+
+    def _input(self, u, n: int, method: str) -> Optional[np.ndarray]:
+        if u is None:
+            if self._fitted().uses_input():
+                raise ValueError(
+                    f"u: the model has an excitation term u (coefficient "
+                    f"{dict(self._fitted().terms()).get('u')}), so {method} needs the "
+                    "excitation u on the same grid as t."
+                )
+            return None
+        return _column("u", u, n)
 
     def score(self, x, t, u=None) -> float:
         """Free-run fit of the measured ``x``: 1 − NRMSE² (1 is perfect, 0 no better than the
         mean, negative worse), simulated from x[0] with v[0] from a first difference."""
-        t, x, _, u = _columns(x, t, None, u, minimum=3)
+        t, x, _, u, _ = _columns(x, t, None, u, minimum=3, origin=self._t_origin)
+        u = self._input(u, t.shape[0], "score")
         v0 = (x[1] - x[0]) / (t[1] - t[0])
         xs, _ = self.simulate((x[0], v0), t, u)
         if not np.all(np.isfinite(xs)):
@@ -221,8 +422,39 @@ class Model:
 
     def stream(self) -> "Stream":
         """A ``Stream`` with this fit's configuration: fed the same samples, it gives the same
-        model as the fit."""
+        streaming model as the fit (``streaming_coefficients()``)."""
         return Stream(like=self)
+
+    # -- pickling ------------------------------------------------------------------------
+    def __getstate__(self) -> Dict[str, Any]:
+        state: Dict[str, Any] = {"version": _PICKLE_VERSION, "options": self._option_dict(),
+                                 "fit": None, "t_origin": self._t_origin}
+        if self._fit is not None:
+            if self._data is None:
+                raise TypeError(
+                    "a Stream's model keeps none of the samples it came from, so it cannot be "
+                    "pickled; pickle the Stream's report() (a dict), or a Model fitted on the samples."
+                )
+            name, t, x, v, u = self._data
+            state["fit"] = dict(name=name, t=t, x=x, v=v, u=u, json=self.to_json())
+        return state
+
+    def __setstate__(self, state: Dict[str, Any]) -> None:
+        if state.get("version") != _PICKLE_VERSION:
+            raise ValueError(
+                f"this pickled lssi.Model has state version {state.get('version')!r}; "
+                f"this lssi reads version {_PICKLE_VERSION}."
+            )
+        self.__init__(**state["options"])
+        self._t_origin = state.get("t_origin")
+        fit = state["fit"]
+        if fit is not None:
+            self._run(fit["name"], fit["t"], fit["x"], fit["v"], fit["u"])
+            if self.to_json() != fit["json"]:
+                raise ValueError(
+                    "this lssi identifies another model from the pickled model's samples than "
+                    "the one pickled (a different version?): refit them instead of unpickling."
+                )
 
     def __repr__(self) -> str:
         state = self.equation() if self._fit is not None else "not fitted"
@@ -230,12 +462,14 @@ class Model:
 
 
 class Stream:
-    """Online identification: ``push`` blocks of samples, ask for the ``model()`` any time.
+    """Online identification: ``push`` blocks of samples, ask for the ``model()`` any time
+    (the streaming identifier's model, as a device computes it: not refined).
 
     ``Stream(like=model)`` takes a fitted model's configuration (then the same samples give
-    the same model as the fit). Otherwise the configuration is chosen, as ``lssi identify``
-    chooses it, from the first ``calibrate`` samples pushed (they are then fed in too); the
-    options are those of ``Model``.
+    the model's ``streaming_coefficients()``). Otherwise the configuration is chosen, as
+    ``lssi identify`` chooses it, from the first ``calibrate`` samples pushed (they are then
+    fed in too); the options are those of ``Model``. Every block must carry the channels
+    (v, u) the stream was configured with, no more and no fewer: ValueError otherwise.
     """
 
     def __init__(
@@ -250,24 +484,63 @@ class Stream:
         calibrate: int = 8192,
         like: Optional[Model] = None,
     ) -> None:
-        self._options = Model(poly_order, harmonics, omega, family, f32, smoothing, memory)
-        self._calibrate = int(calibrate)
-        if self._calibrate < MIN_SAMPLES:
-            raise ValueError(f"calibrate must be at least {MIN_SAMPLES} samples.")
+        self._options = Model(poly_order, harmonics, omega, family, f32, smoothing, memory,
+                              refine=False)
+        self._calibrate = _integer("calibrate", calibrate, MIN_SAMPLES, 2**62)
+        if like is not None and not isinstance(like, Model):
+            raise TypeError(f"like must be a fitted lssi.Model, not {like!r}.")
         self._raw = None if like is None else _lssi.RawStream.like(like._fitted())
+        self._t_origin = None if like is None else like._t_origin
+        if like is not None:
+            self._options = Model(**{**like._option_dict(), "refine": False})
         self._pending: List[Tuple] = []
+        # (v, u) given in the blocks so far, before the stream is configured.
+        self._channels: Optional[Tuple[bool, bool]] = None
         self._count = 0
         self._last_t: Optional[float] = None
+        self._t_dates: Optional[bool] = None if like is None else like._t_origin is not None
         self.rejected = 0
+
+    def _check_channels(self, v, u) -> None:
+        given = (v is not None, u is not None)
+        if self._raw is not None:
+            expected, source = tuple(self._raw.channels()), "configured"
+        elif self._channels is not None:
+            expected, source = self._channels, "calibrating, from its first block,"
+        else:
+            return
+        for i, (name, what) in enumerate((("v", "a measured velocity"), ("u", "an excitation"))):
+            if given[i] and not expected[i]:
+                raise ValueError(
+                    f"{name}: this stream was {source} without {what} {name}, so a block with "
+                    f"{name} cannot be fed in (the identifier would reject every sample); push "
+                    f"it without {name}, or start a stream whose calibration (or model) has {name}."
+                )
+            if expected[i] and not given[i]:
+                raise ValueError(
+                    f"{name}: this stream was {source} with {what} {name}, so every block "
+                    f"needs {name}; this one has none."
+                )
 
     def push(self, x, t=None, v=None, u=None) -> "Stream":
         """Feeds a block: arrays (or a DataFrame with columns t, x[, v, u]) of one length.
         The block is checked before anything is fed in (ValueError names the problem)."""
-        t, x, v, u = _columns(x, t, v, u, minimum=1)
+        t, x, v, u, origin = _columns(x, t, v, u, minimum=1, origin=self._t_origin)
+        dates = origin is not None
+        if self._t_dates is not None and dates != self._t_dates:
+            raise ValueError(
+                "t: this stream's times were "
+                + ("dates and times" if self._t_dates else "seconds")
+                + "; every block's t must be too."
+            )
+        self._check_channels(v, u)
         if self._last_t is not None and t[0] <= self._last_t:
             raise ValueError(f"t must increase: the block starts at {t[0]}, after {self._last_t}.")
+        self._t_dates = dates
+        self._t_origin = origin
         self._last_t = float(t[-1])
         if self._raw is None:
+            self._channels = (v is not None, u is not None)
             self._pending.append((t, x, v, u))
             self._count += t.shape[0]
             if self._count >= self._calibrate:
@@ -279,19 +552,20 @@ class Stream:
     def _start(self) -> None:
         cat = lambda i: None if self._pending[0][i] is None else np.concatenate([p[i] for p in self._pending])
         t, x, v, u = cat(0), cat(1), cat(2), cat(3)
-        self._raw = _lssi.RawStream.calibrated(t, x, v, u, *_options(self._options))
+        self._raw = _lssi.RawStream.calibrated(t, x, v, u, *self._options._options())
         self._pending = []
         self.rejected += self._raw.push(t, x, v, u)
 
     def model(self) -> Model:
-        """The model from everything pushed so far (it changes nothing that follows)."""
+        """The streaming model from everything pushed so far (it changes nothing that
+        follows); its ``to_json()`` is what ``lssi identify --no-refine --json`` prints."""
         if self._raw is None:
             if not self._pending:
                 raise ValueError("nothing was pushed yet.")
             self._start()
-        m = Model.__new__(Model)
-        m.__dict__.update(self._options.__dict__)
+        m = Model(**self._options._option_dict())
         m._fit = self._raw.model()
+        m._t_origin = self._t_origin
         return m
 
 
@@ -301,8 +575,10 @@ def read_recording(path: str):
 
 
 def identify(path, **options) -> Model:
-    """``lssi identify FILE`` with the options of ``Model`` (f32=False by default, as
-    ``--f64``). Returns the fitted Model; ValueError says why a file cannot be used."""
+    """``lssi identify FILE --f64`` with the options of ``Model`` (``refine=False``:
+    ``--no-refine``; ``f32=True``: ``--f32``). Returns the fitted Model; ValueError says why
+    a file cannot be used."""
     m = Model(**options)
-    m._fit = _lssi.identify_file(str(path), *_options(m))
+    t, x, v, u = read_recording(path)
+    m._run(str(path), t, x, v, u)
     return m

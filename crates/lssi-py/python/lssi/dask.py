@@ -47,7 +47,7 @@ def identify_one(item: Any, name: Optional[str] = None, **options) -> Dict[str, 
             coefficients={term["term"]: term["coef"] for term in report["terms"]},
             report=report,
         )
-    except ValueError as e:
+    except (ValueError, RuntimeError) as e:
         row["error"] = str(e)
     return row
 
