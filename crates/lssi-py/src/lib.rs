@@ -318,6 +318,18 @@ fn read_recording<'py>(
     ))
 }
 
+/// Panics inside the guard, for the tests: what a bug in the Rust code becomes in Python
+/// (a `RuntimeError` with a sentence, not a `pyo3_runtime.PanicException`).
+#[pyfunction]
+fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
+    py.detach(|| {
+        guarded("testing the guard", || -> Result<(), String> {
+            panic!("a panic on purpose")
+        })
+    })?;
+    Ok(())
+}
+
 /// A streaming identifier in either precision.
 enum Precision {
     F32(Box<HostIdentifier<f32>>),
@@ -534,5 +546,6 @@ fn _lssi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<RawStream>()?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(read_recording, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
 }

@@ -504,22 +504,22 @@ class Stream:
     def _check_channels(self, v, u) -> None:
         given = (v is not None, u is not None)
         if self._raw is not None:
-            expected, source = tuple(self._raw.channels()), "configured"
+            expected, source = tuple(self._raw.channels()), "this stream was configured"
         elif self._channels is not None:
-            expected, source = self._channels, "calibrating, from its first block,"
+            expected, source = self._channels, "this stream's first block came"
         else:
             return
         for i, (name, what) in enumerate((("v", "a measured velocity"), ("u", "an excitation"))):
             if given[i] and not expected[i]:
                 raise ValueError(
-                    f"{name}: this stream was {source} without {what} {name}, so a block with "
-                    f"{name} cannot be fed in (the identifier would reject every sample); push "
-                    f"it without {name}, or start a stream whose calibration (or model) has {name}."
+                    f"{name}: {source} without {what} {name}, so a block with {name} cannot be "
+                    f"fed in (the identifier would reject every sample); push it without "
+                    f"{name}, or start a stream whose calibration (or model) has {name}."
                 )
             if expected[i] and not given[i]:
                 raise ValueError(
-                    f"{name}: this stream was {source} with {what} {name}, so every block "
-                    f"needs {name}; this one has none."
+                    f"{name}: {source} with {what} {name}, so every block needs {name}; "
+                    "this one has none."
                 )
 
     def push(self, x, t=None, v=None, u=None) -> "Stream":
