@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lssi_host::commands::{bench, generate, identify, info, log, monitor, plot, replay};
+use lssi_host::commands::{bench, generate, identify, info, log, monitor, plot, replay, simulate};
 use lssi_host::error::CliError;
 
 /// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
@@ -35,6 +35,8 @@ enum Command {
     Monitor(monitor::MonitorArgs),
     /// Draw a recording and its identified model (PNG and SVG).
     Plot(plot::PlotArgs),
+    /// Simulate a model from `lssi identify --json` over a recording's time grid and input.
+    Simulate(simulate::SimulateArgs),
 }
 
 fn run(cli: &Cli) -> Result<(), CliError> {
@@ -47,6 +49,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Log(args) => log::run(args),
         Command::Monitor(args) => monitor::run(args),
         Command::Plot(args) => plot::run(args),
+        Command::Simulate(args) => simulate::run(args),
     }
 }
 

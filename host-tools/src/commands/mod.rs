@@ -12,3 +12,4 @@ pub mod log;
 pub mod monitor;
 pub mod plot;
 pub mod replay;
+pub mod simulate;

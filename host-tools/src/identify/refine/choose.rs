@@ -60,6 +60,11 @@ pub struct Check {
 pub struct Tried {
     /// Its terms.
     pub terms: Vec<Term>,
+    /// Its coefficients refined on the first half, with their standard errors (`None`: the
+    /// refinement failed or was not run).
+    pub refined: Option<Vec<(Term, f64, f64)>>,
+    /// Its paired comparison with the streaming model over the held-out windows.
+    pub paired: Option<Paired>,
     /// Its held-out simulation error (`None`: the refinement or its prediction failed).
     pub held_out: Option<Fit>,
     /// |coefficient| ÷ standard error, on the first half, of each term it adds to the
@@ -81,6 +86,11 @@ pub const SIGNIFICANT_SE: f64 = 3.0;
 /// half) a model's prediction error must be below another's to count as better: a tie keeps
 /// the streaming model.
 pub const Z_BETTER: f64 = 2.0;
+
+/// How far (standard errors of the paired difference) a refined model of the streaming
+/// support whose coefficients disagree with the streaming model's may predict worse and still
+/// be taken.
+pub const NOT_WORSE_Z: f64 = 1.0;
 
 /// The largest median NRMSE (%) of the streaming model's windows at which a horizon is taken:
 /// over a longer one the record is not predictable (a chaotic trajectory parts from any
@@ -239,14 +249,21 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             .filter(|x| !t.support.contains(x))
             .all(|&x| significance(&trials[0], x).is_some_and(|z| z < SIGNIFICANT_SE))
     };
+    // The streaming support refined is the maximum-likelihood estimate under white
+    // measurement noise, which the streaming (equation-error) estimate is not: where the two
+    // disagree by more than the refined model's own standard errors, the data resolves the
+    // streaming model's bias, and the refined one is taken unless it predicts worse.
+    let disagreement = disagreement(model, trials[0].refined.as_ref());
     let eligible: Vec<usize> = (0..trials.len())
         .filter(|&i| {
             let Some(p) = against_streaming[i] else {
                 return false;
             };
             let sparser = trials[i].support.len() < streaming_terms.len();
+            let resolved = i == 0 && disagreement.is_some_and(|d| d >= SIGNIFICANT_SE);
             adds_significant(&trials[i])
                 && (p.z >= Z_BETTER
+                    || (resolved && p.z >= -NOT_WORSE_Z)
                     || (sparser && p.gain >= 0.0 && drops_insignificant(&trials[i])))
         })
         .collect();
@@ -332,6 +349,13 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 s.nrmse_percent,
                 z_text(paired)
             );
+            if pick == Some(0)
+                && let Some(d) = disagreement
+            {
+                text.push_str(&format!(
+                    "; the streaming coefficients lie up to {d:.1} standard errors from the refined ones"
+                ));
+            }
             if pick != Some(0) {
                 let on_streaming = match &trials[0].windows {
                     Some(w) => format!("{:.3} %", w.nrmse_percent()),
@@ -351,17 +375,28 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             text
         }
         (true, Some(s), Some(r)) => format!(
-            "streaming model kept: the refined one predicts {:.3} % against {:.3} % {over} ({}; {Z_BETTER} needed)",
+            "streaming model kept: the refined one predicts {:.3} % against {:.3} % {over} ({}; {Z_BETTER} needed), and the streaming coefficients lie within {} of its standard errors",
             r.nrmse_percent,
             s.nrmse_percent,
-            z_text(paired)
+            z_text(paired),
+            disagreement.map_or("no estimate".to_owned(), |d| format!("{d:.1}"))
         ),
         _ => "not refined: the refinement did not converge".to_owned(),
     };
     let supports = trials
         .iter()
-        .map(|t| Tried {
+        .zip(&against_streaming)
+        .map(|(t, paired)| Tried {
             terms: t.support.clone(),
+            refined: t.refined.as_ref().map(|r| {
+                r.model
+                    .terms
+                    .iter()
+                    .zip(&r.standard_errors)
+                    .map(|((term, c), se)| (*term, *c, *se))
+                    .collect()
+            }),
+            paired: *paired,
             held_out: t.windows.as_ref().map(Windows::fit),
             added_significance: t.refined.as_ref().map_or(vec![], |r| {
                 r.model
@@ -416,6 +451,24 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         supports,
         support_change,
     }
+}
+
+/// The largest |streaming − refined| ÷ standard error over the streaming model's terms, the
+/// refined model being the streaming support refined (on the first half).
+fn disagreement(streaming: &SimModel, refined: Option<&Refined>) -> Option<f64> {
+    let refined = refined?;
+    let mut largest: Option<f64> = None;
+    for ((term, c), se) in refined.model.terms.iter().zip(&refined.standard_errors) {
+        let Some((_, s)) = streaming.terms.iter().find(|(t, _)| t == term) else {
+            continue;
+        };
+        if !(se.is_finite() && *se > 0.0) {
+            return None;
+        }
+        let d = (s - c).abs() / se;
+        largest = Some(largest.map_or(d, |l: f64| l.max(d)));
+    }
+    largest
 }
 
 /// The horizon the models were compared over.

@@ -1,9 +1,9 @@
 //! Standard errors of refined coefficients (see the module doc of [`super`]).
 
 use lssi_core::Term;
-use nalgebra::{DMatrix, DVector};
 
 use super::Data;
+use super::normal::BlockNormal;
 use super::shooting::{Shape, Solution, jacobian, rss};
 
 /// The standard errors of a solution's coefficients (see the module doc): the marginal
@@ -34,43 +34,32 @@ pub(crate) fn standard_errors(shape: &Shape, data: &Data, sol: &Solution) -> Opt
         rss(&moved(-h), c, data, segs, states, &mut minus)?;
         columns.push((0..n).map(|i| (plus[i] - minus[i]) / (2.0 * h)).collect());
     }
-    // Parameters: the coefficients, two per segment, then Ω (when periodic).
-    let shared = columns.len() - 2;
-    let p = k + 2 * segs.len() + usize::from(periodic);
-    let mut normal = DMatrix::<f64>::zeros(p, p);
-    let mut gradient = DVector::<f64>::zeros(p);
-    for (s, &(a, b)) in segs.iter().enumerate() {
-        let idx = |q: usize| match q {
-            q if q < k => q,
-            q if q < k + 2 => k + 2 * s + (q - k),
-            _ => p - 1,
-        };
-        for i in a..b {
-            let r = base[i] - data.x[i];
-            for q1 in 0..shared + 2 {
-                let j1 = columns[q1][i];
-                gradient[idx(q1)] += j1 * r;
-                for q2 in q1..shared + 2 {
-                    normal[(idx(q1), idx(q2))] += j1 * columns[q2][i];
-                }
-            }
-        }
+    // Shared parameters: the coefficients, then Ω (when periodic); two per segment.
+    let mut shared: Vec<&[f64]> = columns[..k].iter().map(Vec::as_slice).collect();
+    if periodic {
+        shared.push(&columns[k + 2]);
     }
-    for a in 0..p {
-        for b in 0..a {
-            normal[(a, b)] = normal[(b, a)];
-        }
-    }
-    let inverse = normal.cholesky()?.inverse();
+    let normal = BlockNormal::assemble(
+        &shared,
+        [&columns[k], &columns[k + 1]],
+        |i| base[i] - data.x[i],
+        segs,
+    );
+    let inverse = normal.shared_inverse()?;
+    let p = normal.parameters();
     let m: usize = segs.iter().map(|&(a, b)| b - a).sum();
     let sigma2 = rss0 / m.saturating_sub(p).max(1) as f64 * correlation_factor(&sol.residuals);
     // The coefficients' shift were Ω refined too (zero in the coefficients' and states' own
     // directions at the optimum: only Ω's gradient moves them).
-    let step = -(&inverse * &gradient);
+    let step = if periodic {
+        Some(normal.solve(0.0)?.0)
+    } else {
+        None
+    };
     Some(
         (0..k)
             .map(|j| {
-                let shift = if periodic { step[j] } else { 0.0 };
+                let shift = step.as_ref().map_or(0.0, |s| s[j]);
                 (sigma2 * inverse[(j, j)] + shift * shift).max(0.0).sqrt()
             })
             .collect(),

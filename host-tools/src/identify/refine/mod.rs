@@ -53,16 +53,17 @@
 
 mod choose;
 mod errors;
+mod normal;
 mod shooting;
 mod summary;
 #[cfg(test)]
 mod tests;
 
 pub use choose::{
-    Check, Chosen, Horizon, PREDICTABLE_NRMSE_PERCENT, Paired, SIGNIFICANT_SE, SUPPORT_PARSIMONY,
-    Tried, Z_BETTER, refine_and_check, refine_and_check_among, refine_recording,
+    Check, Chosen, Horizon, NOT_WORSE_Z, PREDICTABLE_NRMSE_PERCENT, Paired, SIGNIFICANT_SE,
+    SUPPORT_PARSIMONY, Tried, Z_BETTER, refine_and_check, refine_and_check_among, refine_recording,
 };
-pub use summary::{Summary, SupportChange, TermSummary};
+pub use summary::{Candidate, Summary, SupportChange, TermSummary};
 
 use serde::Serialize;
 
@@ -366,6 +367,17 @@ pub fn free_run_after_fitted_start(model: &SimModel, data: &Data, segment: usize
     let first = [(0, segment.min(data.len()))];
     let start = least_squares(&shape, &c, data, &first, true, 20, None)?;
     free_run_fit(model, data, *start.states.first()?)
+}
+
+/// A free run of `model` over `data`'s time grid (driven by its `u`) from `start` (recording
+/// coordinates): the simulated x, or `None` when it diverges.
+pub fn free_run(model: &SimModel, data: &Data, start: (f64, f64)) -> Option<Vec<f64>> {
+    let (shape, c) = Shape::on(model, data);
+    let n = data.len();
+    let mut out = vec![0.0; n];
+    shape
+        .simulate(&c, data, (0, n), start, &mut out)
+        .then_some(out)
 }
 
 /// A free run of `model` on `data` from rest (x₀ = v₀ = 0 in recording coordinates) or from

@@ -2,9 +2,9 @@
 //! initial state, and Levenberg–Marquardt over the coefficients and the states.
 
 use lssi_core::Term;
-use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
+use super::normal::BlockNormal;
 use super::{Data, Span};
 use crate::identify::simulate::SimModel;
 
@@ -471,7 +471,6 @@ pub(crate) fn least_squares(
 ) -> Option<Solution> {
     let n = data.len();
     let k = if fixed { 0 } else { start.len() };
-    let p = k + 2 * segs.len();
     let mut c = start.to_vec();
     let mut states = states.unwrap_or_else(|| initial_states(data, segs));
     let mut base = vec![0.0; n];
@@ -479,7 +478,6 @@ pub(crate) fn least_squares(
     let mut current = rss(shape, &c, data, segs, &states, &mut base)?;
     let mut lambda = 1e-3;
     let mut done = 0;
-    let mut normal = DMatrix::zeros(p, p);
     for iteration in 0..iterations {
         done = iteration + 1;
         if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
@@ -489,49 +487,27 @@ pub(crate) fn least_squares(
             );
         }
         let columns = jacobian(shape, &c, data, segs, &states, k)?;
-        // Normal equations: coefficients × coefficients over every row; a segment's two
-        // state columns meet the coefficients and each other on its own rows only.
-        normal.fill(0.0);
-        let mut gradient = DVector::zeros(p);
-        for (s, &(a, b)) in segs.iter().enumerate() {
-            let idx = |q: usize| if q < k { q } else { k + 2 * s + (q - k) };
-            for i in a..b {
-                let r = base[i] - data.x[i];
-                for q1 in 0..k + 2 {
-                    let j1 = columns[q1][i];
-                    if j1 == 0.0 {
-                        continue;
-                    }
-                    gradient[idx(q1)] += j1 * r;
-                    for q2 in q1..k + 2 {
-                        normal[(idx(q1), idx(q2))] += j1 * columns[q2][i];
-                    }
-                }
-            }
-        }
-        for a in 0..p {
-            for b in 0..a {
-                normal[(a, b)] = normal[(b, a)];
-            }
-        }
+        let shared: Vec<&[f64]> = columns[..k].iter().map(Vec::as_slice).collect();
+        let normal = BlockNormal::assemble(
+            &shared,
+            [&columns[k], &columns[k + 1]],
+            |i| base[i] - data.x[i],
+            segs,
+        );
         // Damped steps until one lowers the error.
         let mut accepted = false;
         for _ in 0..12 {
-            let mut damped = normal.clone();
-            for d in 0..p {
-                damped[(d, d)] += lambda * normal[(d, d)].max(1e-300);
-            }
-            let Some(step) = damped.cholesky().map(|ch| ch.solve(&(-&gradient))) else {
+            let Some((step_c, step_s)) = normal.solve(lambda) else {
                 lambda *= 10.0;
                 continue;
             };
             let trial_c: Vec<f64> = (0..c.len())
-                .map(|j| if j < k { c[j] + step[j] } else { c[j] })
+                .map(|j| if j < k { c[j] + step_c[j] } else { c[j] })
                 .collect();
             let trial_states: Vec<(f64, f64)> = states
                 .iter()
-                .enumerate()
-                .map(|(s, &(x, v))| (x + step[k + 2 * s], v + step[k + 2 * s + 1]))
+                .zip(&step_s)
+                .map(|(&(x, v), d)| (x + d[0], v + d[1]))
                 .collect();
             match rss(shape, &trial_c, data, segs, &trial_states, &mut plus) {
                 Some(trial) if trial < current => {

@@ -38,6 +38,10 @@ pub struct Summary {
     /// The paired comparison of the refined model with the streaming one over those windows
     /// (`gain`: the fraction of the streaming model's error removed; `z`: in standard errors).
     pub paired: Option<Paired>,
+    /// Every support refined on the first half (the streaming one first): its terms with
+    /// their coefficients and standard errors there, its prediction error over the held-out
+    /// windows and its paired comparison with the streaming model.
+    pub candidates: Vec<Candidate>,
     /// The reported model's free run over the whole held-out half (one fitted initial state):
     /// long-range behaviour, which a chaotic record shares with no model.
     pub free_run: Option<Fit>,
@@ -49,6 +53,18 @@ pub struct Summary {
     /// when the support is the streaming one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub support_changed: Option<SupportChange>,
+}
+
+/// One support refined on the first half, as the `"refined"` object lists it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Candidate {
+    /// Its terms, refined on the first half, with standard errors (NaN, `null` in the JSON,
+    /// when its refinement failed).
+    pub terms: Vec<TermSummary>,
+    /// Its prediction error over the held-out windows.
+    pub held_out: Option<Fit>,
+    /// Its paired comparison with the streaming model there.
+    pub paired: Option<Paired>,
 }
 
 /// How the refined model's support differs from the streaming model's.
@@ -87,6 +103,33 @@ impl Summary {
             prediction: check.prediction,
             paired: check.paired,
             free_run: check.free_run,
+            candidates: check
+                .supports
+                .iter()
+                .map(|t| Candidate {
+                    terms: match &t.refined {
+                        Some(refined) => refined
+                            .iter()
+                            .map(|(term, coef, se)| TermSummary {
+                                term: term.name(omega).to_string(),
+                                coef: *coef,
+                                se: Some(*se),
+                            })
+                            .collect(),
+                        None => t
+                            .terms
+                            .iter()
+                            .map(|term| TermSummary {
+                                term: term.name(omega).to_string(),
+                                coef: f64::NAN,
+                                se: None,
+                            })
+                            .collect(),
+                    },
+                    held_out: t.held_out,
+                    paired: t.paired,
+                })
+                .collect(),
             samples_per_period: check.samples_per_period,
             support_changed: check.support_changed(omega),
         }
