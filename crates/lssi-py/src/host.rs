@@ -7,10 +7,10 @@ use lssi_core::{Config, Identifier, Real, Sample, Term};
 pub use lssi_host::identify::Options;
 pub use lssi_host::identify::Report;
 use lssi_host::identify::pipeline::{self, Failure, Refine};
-pub use lssi_host::identify::refine::Summary;
 use lssi_host::identify::refine::Chosen;
-pub use lssi_host::identify::simulate::SimModel;
+pub use lssi_host::identify::refine::Summary;
 use lssi_host::identify::simulate;
+pub use lssi_host::identify::simulate::SimModel;
 use lssi_host::identify::{self, TERM_CAPACITY};
 use lssi_host::recording::{ColumnNames, Recording};
 

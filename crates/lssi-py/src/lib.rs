@@ -147,6 +147,9 @@ struct Fit {
     model: SimModel,
 }
 
+/// Two NumPy arrays: a simulation's x and v.
+type Pair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
 fn named(terms: &[lssi_host::identify::TermReport]) -> Vec<(String, f64)> {
     terms.iter().map(|t| (t.term.clone(), t.coef)).collect()
 }
@@ -228,7 +231,7 @@ impl Fit {
         x0: f64,
         v0: f64,
         u: Option<PyReadonlyArray1<'py, f64>>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    ) -> PyResult<Pair<'py>> {
         let t = t.as_array().to_vec();
         let u = vector(u);
         let model = &self.model;

@@ -7,7 +7,9 @@
 
 One task per recording, each running the same identification as ``lssi.identify`` (a file
 path) or ``Model.fit`` (a dict of arrays ``{"t": ..., "x": ..., "v": ..., "u": ...}`` or a
-pandas DataFrame). It runs unchanged on a ``LocalCluster`` or a real scheduler's ``Client``.
+pandas DataFrame): refined on simulation error by default, as ``lssi identify`` refines one
+recording (``refine=False``: the streaming model, as its batches report). It runs unchanged
+on a ``LocalCluster`` or a real scheduler's ``Client``.
 """
 
 from __future__ import annotations
