@@ -40,7 +40,7 @@ crates/lssi-firmware/scripts/qemu-check.sh
 
 step "replay through the QEMU firmware == lssi identify --f32 --no-refine; the standalone instrument at 10 kHz"
 LSSI_FIRMWARE_ELF="$elf" \
-    cargo test --workspace --locked --release --test qemu --test standalone_qemu -- --include-ignored --nocapture
+    cargo test --locked --release -p lssi-tests --test e2e -- qemu --include-ignored --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then
     step "identifier cost, size and stack on the Cortex-M4F"

@@ -552,6 +552,9 @@ def main(argv=None):
     ap.add_argument("--lssi", default="/work/main/target/release/lssi")
     ap.add_argument("--out", default="/tmp/choice", help="work dir for recordings and outputs")
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--first-seed", type=int, default=1,
+                    help="seeds first..first+seeds-1 (the choice's thresholds were set on 1-5: "
+                         "report others)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--kinds", default="", help="comma-separated kinds (default: all): "
                     + ", ".join(KINDS))
@@ -570,7 +573,7 @@ def main(argv=None):
     order = {k: i for i, k in enumerate(ORDER)}
     jobs = [{"kind": k, "index": i, "seed": KINDS[k][0] + i + 1}
             for k in sorted(kinds, key=lambda k: order.get(k, len(ORDER)))
-            for i in range(opts.seeds)]
+            for i in range(opts.first_seed - 1, opts.first_seed - 1 + opts.seeds)]
     start = time.perf_counter()
     results = {}
     with cf.ThreadPoolExecutor(max_workers=opts.jobs) as pool:

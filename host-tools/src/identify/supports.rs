@@ -42,8 +42,9 @@ impl Candidates {
     }
 
     /// The solutions of the report's sweep that differ from the selected support by one term,
-    /// in the sweep's order (dense to sparse), each once; the derivative window and degree
-    /// the identifier chose, for their starts.
+    /// in the sweep's order (dense to sparse), then the selected support with each term of
+    /// the densest solution it lacks, each once; the derivative window and degree the
+    /// identifier chose, for their starts.
     pub fn of(report: &Report) -> Self {
         let streaming: Vec<Term> = report
             .model
@@ -75,6 +76,30 @@ impl Candidates {
                     .any(|&t| made_by_the_origin(t, &streaming, report.offsets))
             {
                 supports.push(support);
+            }
+        }
+        // The streaming support with each term of the densest solution it lacks: a term the
+        // sweep shed early (the weak damping at a few samples a period) is back in play even
+        // when the sweep's neighbour adds another in its place (x²·v for v).
+        if let Some(densest) = report.solutions.first().and_then(|s| {
+            s.terms
+                .iter()
+                .map(|name| term_named(name, report.omega))
+                .collect::<Option<Vec<Term>>>()
+        }) {
+            for &term in &densest {
+                if streaming.contains(&term) || made_by_the_origin(term, &streaming, report.offsets)
+                {
+                    continue;
+                }
+                let support: Vec<Term> = densest
+                    .iter()
+                    .copied()
+                    .filter(|t| *t == term || streaming.contains(t))
+                    .collect();
+                if support.len() == streaming.len() + 1 && !supports.contains(&support) {
+                    supports.push(support);
+                }
             }
         }
         Self {

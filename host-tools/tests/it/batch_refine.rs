@@ -53,11 +53,12 @@ fn many_recordings_give_one_line_each_in_order_with_errors_in_their_rows() {
         let single = lssi(&["identify", file, "--json", "--family", "odd", "--no-refine"]);
         let single = String::from_utf8(single.stdout).unwrap();
         let single = single.trim();
-        assert!(single.ends_with(",\"warnings\":[]}"), "{single}");
+        let note = ",\"warnings\":[\"not refined (--no-refine)\"]}";
+        assert!(single.ends_with(note), "{single}");
         let expected = format!(
-            "{{\"file\":{},{}\"{}\"]}}",
+            "{{\"file\":{},{},\"warnings\":[\"{}\"]}}",
             serde_json::Value::from(file.as_str()),
-            &single[1..single.len() - 2],
+            &single[1..single.len() - note.len()],
             lssi_host::identify::batch::NOT_REFINED
         );
         assert_eq!(line, expected);
@@ -127,7 +128,10 @@ fn a_batch_withholds_a_model_that_fails_the_gate_and_names_it() {
 #[test]
 fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     let dir = tempfile::tempdir().unwrap();
-    let a = generate(dir.path(), "a.csv", &["--seed", "3", "--delta", "0.02"]);
+    // 10 % noise on x alone: the streaming model's coefficients lie outside the refined
+    // model's standard errors, and refinement is taken (at 2 % it is a tie, and the streaming
+    // model stays).
+    let a = generate(dir.path(), "a.csv", &["--seed", "4", "--delta", "0.1"]);
     let out = lssi(&["identify", &a, "--family", "odd", "--json"]);
     assert!(
         out.status.success(),
@@ -146,7 +150,7 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
         assert!(t["se"].as_f64().unwrap() > 0.0);
     }
     assert!(
-        refined["free_run"]["nrmse_percent"].as_f64().unwrap() < 10.0,
+        refined["prediction"]["nrmse_percent"].as_f64().unwrap() < 12.0,
         "{refined}"
     );
     // "streaming_terms" is the device's model: "terms" of --no-refine, without errors.
@@ -168,9 +172,14 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
             .and_then(|t| t["coef"].as_f64())
             .unwrap()
     };
-    for name in ["x", "v", "x^3"] {
-        let (r, s) = (coef(&v, "terms", name), coef(&v, "streaming_terms", name));
-        assert!((r / s - 1.0).abs() < 0.05, "{name}: {r} vs {s}");
+    // The refined model is close to the truth `lssi gen` wrote beside the recording.
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.replace(".csv", ".json")).unwrap())
+            .unwrap();
+    for (name, within) in [("x", 0.02), ("v", 0.1), ("x^3", 0.02)] {
+        let want = coef(&truth, "terms", name);
+        let r = coef(&v, "terms", name);
+        assert!((r / want - 1.0).abs() < within, "{name}: {r} vs {want}");
     }
     // --refine (which scripts passed before it was the default) is accepted and changes
     // nothing; it and --no-refine together are refused.

@@ -51,7 +51,7 @@ fn replay_json_is_identify_json_plus_the_link() {
         .unwrap()
         .remove("warnings")
         .unwrap();
-    assert_eq!(warnings, serde_json::json!([]));
+    assert_eq!(warnings, serde_json::json!(["not refined (--no-refine)"]));
 
     let replay = lssi(&["replay", "--json", "--baud", "4000000", file]);
     assert!(

@@ -2,7 +2,7 @@
 //! snapshot, scheduled and queried, bit for bit, and independent of the capacities W and P
 //! (the host's `lssi identify` runs W = 1023, P = 32).
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_core::{Identifier, Sample};

@@ -1,6 +1,6 @@
 //! No input makes the device panic, and after any input it answers a valid `Hello`.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_device::wire::config_to_wire;

@@ -1,7 +1,7 @@
 //! The device over an in-process loopback: the handshake, configuration, exactly-once
 //! batches through duplicates, gaps and corrupt frames, queries, resets and logs.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_device::wire::{config_from_wire, config_to_wire};

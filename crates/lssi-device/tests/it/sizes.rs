@@ -1,4 +1,4 @@
-//! Memory figures of the firmware's device: `cargo test -p lssi-device --test sizes -- --nocapture`.
+//! Memory figures of the firmware's device: `cargo test -p lssi-device --test it sizes:: -- --nocapture`.
 
 use lssi_core::Identifier;
 use lssi_device::{DEFAULT_TERMS, DEFAULT_WINDOW, Device};

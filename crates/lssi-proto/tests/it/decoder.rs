@@ -1,6 +1,6 @@
 //! The streaming decoder: any input is survived, corruption is rejected, chunking is invisible.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_proto::{

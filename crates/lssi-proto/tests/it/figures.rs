@@ -1,6 +1,6 @@
-//! The README's bytes-per-sample table: `cargo test -p lssi-proto --test figures -- --nocapture`.
+//! The README's bytes-per-sample table: `cargo test -p lssi-proto --test it figures:: -- --nocapture`.
 
-mod common;
+use crate::common;
 
 use common::frame;
 use lssi_proto::size::frame_len;

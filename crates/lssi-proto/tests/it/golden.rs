@@ -1,6 +1,6 @@
 //! Golden frames: the README's worked examples, byte for byte, for implementers elsewhere.
 
-mod common;
+use crate::common;
 
 use common::frame;
 use lssi_proto::{

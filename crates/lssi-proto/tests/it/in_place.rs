@@ -1,7 +1,7 @@
 //! `decode_host_frame` (a batch read in place) agrees with `decode_frame::<HostMsg>` on every
 //! input: the same frames accepted, the same messages, the same errors.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_proto::{Error, HostMsg, decode_frame, decode_host_frame};

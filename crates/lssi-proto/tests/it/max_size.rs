@@ -1,7 +1,7 @@
 //! Every encoding fits its `MaxSize`, the hand-written `MaxSize`s are exact, and the frame
 //! length constants cover the CRC, COBS's worst case and the delimiter.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_proto::size::frame_len;

@@ -1,6 +1,6 @@
 //! Every message survives encode → decode, bit for bit, and the batch API keeps its promises.
 
-mod common;
+use crate::common;
 
 use common::*;
 use lssi_proto::{

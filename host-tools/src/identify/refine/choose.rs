@@ -278,7 +278,8 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         .copied()
         .min_by(|&a, &b| error(a).total_cmp(&error(b)));
     // The sparsest of those the best does not beat (paired test, and the parsimony margin);
-    // among equally sparse, the least error; the streaming support first among equals.
+    // among equally sparse, the lowest degree (v before x²·v for a damping the data cannot
+    // tell apart), then the least error; the streaming support first among equals.
     let pick = best.and_then(|b| {
         eligible
             .iter()
@@ -298,6 +299,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                     .support
                     .len()
                     .cmp(&trials[b].support.len())
+                    .then(degree(&trials[a].support).cmp(&degree(&trials[b].support)))
                     .then(error(a).total_cmp(&error(b)))
             })
     });
@@ -451,6 +453,17 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         supports,
         support_change,
     }
+}
+
+/// The total polynomial degree of a support's monomials.
+fn degree(support: &[Term]) -> u32 {
+    support
+        .iter()
+        .map(|t| match t {
+            Term::Monomial { px, pv } => u32::from(*px) + u32::from(*pv),
+            _ => 0,
+        })
+        .sum()
 }
 
 /// The largest |streaming − refined| ÷ standard error over the streaming model's terms, the
