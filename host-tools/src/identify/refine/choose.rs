@@ -92,6 +92,11 @@ pub const Z_BETTER: f64 = 2.0;
 /// be taken.
 pub const NOT_WORSE_Z: f64 = 1.0;
 
+/// A prediction error (NRMSE, %) below which differences are the arithmetic's, not the
+/// data's (a noiseless simulated record): a sparser support that predicts this well is not
+/// beaten by a denser one (an x·v of 10⁻¹¹ is no term of the system).
+pub const NUMERICAL_NRMSE_PERCENT: f64 = 1e-4;
+
 /// The largest median NRMSE (%) of the streaming model's windows at which a horizon is taken:
 /// over a longer one the record is not predictable (a chaotic trajectory parts from any
 /// model), and the horizon is halved.
@@ -280,6 +285,12 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
     // The sparsest of those the best does not beat (paired test, and the parsimony margin);
     // among equally sparse, the lowest degree (v before x²·v for a damping the data cannot
     // tell apart), then the least error; the streaming support first among equals.
+    let nrmse = |i: usize| {
+        trials[i]
+            .windows
+            .as_ref()
+            .map_or(f64::INFINITY, Windows::nrmse_percent)
+    };
     let pick = best.and_then(|b| {
         eligible
             .iter()
@@ -287,6 +298,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             .filter(|&i| {
                 i == b
                     || error(i) <= error(b) * (1.0 + SUPPORT_PARSIMONY)
+                    || nrmse(i) <= NUMERICAL_NRMSE_PERCENT
                     || trials[b]
                         .windows
                         .as_ref()
