@@ -78,7 +78,7 @@ impl Candidates {
                 supports.push(support);
             }
         }
-        // The streaming support with each term of the densest solution it lacks: a term the
+        // The streaming support with each linear term of the densest solution it lacks: a term the
         // sweep shed early (the weak damping at a few samples a period) is back in play even
         // when the sweep's neighbour adds another in its place (x²·v for v).
         if let Some(densest) = report.solutions.first().and_then(|s| {
@@ -88,7 +88,13 @@ impl Candidates {
                 .collect::<Option<Vec<Term>>>()
         }) {
             for &term in &densest {
-                if streaming.contains(&term) || made_by_the_origin(term, &streaming, report.offsets)
+                // The linear terms only (the stiffness and the damping, which a coarsely
+                // sampled record loses first): higher monomials added this way took spurious
+                // terms of a few standard errors (v² on paper eq. 17), a sin(kΩt) beside
+                // cos(kΩt) is a phase (see `refine::choose`), u and the constant stay anyway.
+                if !matches!(term, Term::Monomial { px, pv } if px + pv == 1)
+                    || streaming.contains(&term)
+                    || made_by_the_origin(term, &streaming, report.offsets)
                 {
                     continue;
                 }

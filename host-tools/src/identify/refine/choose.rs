@@ -92,6 +92,10 @@ pub const Z_BETTER: f64 = 2.0;
 /// be taken.
 pub const NOT_WORSE_Z: f64 = 1.0;
 
+/// The fewest windows of the held-out half the comparison uses (the horizon is shortened to
+/// give as many): a paired test over three windows has no spread to speak of.
+pub const MIN_WINDOWS: usize = 12;
+
 /// A prediction error (NRMSE, %) below which differences are the arithmetic's, not the
 /// data's (a noiseless simulated record): a sparser support that predicts this well is not
 /// beaten by a denser one (an x·v of 10⁻¹¹ is no term of the system).
@@ -161,7 +165,11 @@ pub fn refine_and_check(model: &SimModel, data: &Data) -> Check {
 /// the streaming model's windows at it; `None` windows when it diverges.
 fn horizon(model: &SimModel, held: &Data, settings: &Settings) -> (usize, Option<Windows>) {
     let floor = (settings.segment / 8).max(16);
-    let mut length = settings.segment;
+    // At least MIN_WINDOWS windows, so that the paired test has a spread to go by.
+    let mut length = settings
+        .segment
+        .min(held.len() / MIN_WINDOWS)
+        .max(floor.min(settings.segment));
     loop {
         let windows = window_errors(model, held, length);
         let followed = windows
@@ -241,11 +249,39 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         let se = r.standard_errors.get(j)?;
         se.is_finite().then(|| r.model.terms[j].1.abs() / se)
     };
+    // A sin(kΩt) added beside cos(kΩt) (or the other way round) shifts the forcing's phase;
+    // by less than kΩ times a sample period that is where the samples fall, not a term of the
+    // system (paper eq. 17: sin(2t) of 0.009 beside 5 cos(2t), 10 standard errors, a phase of
+    // half a sample).
+    let period = {
+        let mut steps: Vec<f64> = data.t.windows(2).map(|w| w[1] - w[0]).collect();
+        steps.sort_by(f64::total_cmp);
+        steps.get(steps.len() / 2).copied().unwrap_or(0.0)
+    };
+    let within_a_sample = |t: &Trial, term: Term| -> bool {
+        let (k, partner) = match term {
+            Term::Sin(k) => (k, Term::Cos(k)),
+            Term::Cos(k) => (k, Term::Sin(k)),
+            _ => return false,
+        };
+        let Some(r) = t.refined.as_ref() else {
+            return false;
+        };
+        let coef = |x: Term| r.model.terms.iter().find(|(y, _)| *y == x).map(|(_, c)| *c);
+        match (coef(term), coef(partner)) {
+            (Some(c), Some(p)) if p != 0.0 => {
+                (c / p).atan().abs() <= f64::from(k) * model.omega * period
+            }
+            _ => false,
+        }
+    };
     let adds_significant = |t: &Trial| {
         t.support
             .iter()
             .filter(|x| !streaming_terms.contains(x))
-            .all(|&x| significance(t, x).is_some_and(|z| z >= SIGNIFICANT_SE))
+            .all(|&x| {
+                significance(t, x).is_some_and(|z| z >= SIGNIFICANT_SE) && !within_a_sample(t, x)
+            })
     };
     // A term dropped must be insignificant in the streaming support refined.
     let drops_insignificant = |t: &Trial| {
@@ -266,7 +302,19 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             };
             let sparser = trials[i].support.len() < streaming_terms.len();
             let resolved = i == 0 && disagreement.is_some_and(|d| d >= SIGNIFICANT_SE);
+            // A term added must also earn its place against the same support without it,
+            // refined the same way (the streaming support refined).
+            let adds = trials[i]
+                .support
+                .iter()
+                .any(|x| !streaming_terms.contains(x));
+            let beats_its_base = !adds
+                || match (&trials[0].windows, &trials[i].windows) {
+                    (Some(w0), Some(wi)) => Paired::of(w0, wi).is_some_and(|q| q.z >= Z_BETTER),
+                    _ => true,
+                };
             adds_significant(&trials[i])
+                && beats_its_base
                 && (p.z >= Z_BETTER
                     || (resolved && p.z >= -NOT_WORSE_Z)
                     || (sparser && p.gain >= 0.0 && drops_insignificant(&trials[i])))
@@ -425,7 +473,11 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         .collect();
     let on_all = Settings {
         segment: length,
-        long_pass: length == settings.segment,
+        // Segments four times as long only where the streaming model follows them (a chaotic
+        // record parts from any model well before).
+        long_pass: length == settings.segment
+            && window_errors(model, &held, 4 * length)
+                .is_some_and(|w| w.median_nrmse_percent() <= PREDICTABLE_NRMSE_PERCENT),
         ..settings
     };
     let chosen_half = pick.and_then(|i| trials.into_iter().nth(i).and_then(|t| t.refined));

@@ -518,7 +518,9 @@ pub(crate) fn least_squares(
                     std::mem::swap(&mut base, &mut plus);
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
-                    if gain < 1e-9 {
+                    // A relative gain under 10⁻⁷ moves the parameters by far less than their
+                    // standard errors (one standard error is about 1/N of the RSS).
+                    if gain < 1e-7 {
                         return finish(c, states, current, done, &base, data, segs);
                     }
                     break;
