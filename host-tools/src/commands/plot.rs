@@ -1,6 +1,7 @@
 //! `lssi plot FILE.csv --out DIR`: pictures of a recording and its identified model.
 //!
-//! The recording is identified exactly as `lssi identify` does it (same flags), then every
+//! The recording is identified exactly as `lssi identify` does it (same flags, the same
+//! pipeline: the model drawn is the one it prints, refined unless `--no-refine`), then every
 //! figure of [`crate::plot`] is written to `DIR` as PNG and SVG, and the paths are printed.
 //! A figure the data cannot support (e.g. no model came out of a screening) is skipped with
 //! a note on stderr; the others are still written.
@@ -11,7 +12,8 @@ use clap::Args;
 
 use crate::commands::identify::IdentifyArgs;
 use crate::error::CliError;
-use crate::identify::identify_recording;
+use crate::identify;
+use crate::identify::pipeline::{Failure, Refine};
 use crate::plot::{Units, plot_all};
 use crate::recording::Recording;
 
@@ -49,11 +51,38 @@ pub fn run(args: &PlotArgs) -> Result<(), CliError> {
         });
     }
     let recording = Recording::read(&args.identify.file, &args.identify.columns)?;
-    let report = identify_recording(&recording, &options)?;
+    // The model `lssi identify` prints, through the same pipeline (refined unless
+    // --no-refine; a model the quality gate withholds is not drawn).
+    let refine = if args.identify.no_refine {
+        Refine::No("not refined (--no-refine)")
+    } else {
+        Refine::Yes
+    };
+    let done = match identify::pipeline::identify(&recording, &options, refine) {
+        Ok(done) => done,
+        Err(Failure::Withheld(sentence, ..)) => return Err(CliError::NoDynamics(sentence)),
+        Err(Failure::Error(e)) => return Err(CliError::Identify(e)),
+    };
+    let report = done.report;
+    let prediction = done.refined.as_ref().and_then(|r| {
+        r.prediction.map(|f| {
+            format!(
+                "predictions over {:.3} s windows of the held-out half, as lssi identify reports them: NRMSE {:.2} %",
+                r.horizon.seconds, f.nrmse_percent
+            )
+        })
+    });
     let units = Units {
         x: args.x_unit.clone(),
     };
-    let (written, skipped) = plot_all(&recording, &options, &report, &args.out, &units)?;
+    let (written, skipped) = plot_all(
+        &recording,
+        &options,
+        &report,
+        prediction.as_deref(),
+        &args.out,
+        &units,
+    )?;
     for note in &skipped {
         eprintln!("lssi: figure skipped: {note}");
     }

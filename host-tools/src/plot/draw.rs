@@ -243,6 +243,8 @@ struct ModelFigure<'a> {
     overview: ((f64, f64), &'static str),
     zoom: (f64, f64),
     title: String,
+    /// identify's short-horizon figure, in the upper panel's caption.
+    prediction: Option<String>,
     units: &'a Units,
 }
 
@@ -274,8 +276,12 @@ impl Figure for ModelFigure<'_> {
             let (lo, hi) = padded(xs.iter().chain(ss.iter()).copied());
             // Head room for the legend.
             let hi = hi + 0.3 * (hi - lo);
+            let caption = match (&self.prediction, t0 == self.overview.0.0) {
+                (Some(p), true) => format!("{label}; {p}"),
+                _ => label.to_owned(),
+            };
             let mut chart = ChartBuilder::on(area)
-                .caption(label, font(DESC))
+                .caption(caption, font(DESC))
                 .margin(15)
                 .margin_right(40)
                 .x_label_area_size(60)
@@ -323,6 +329,7 @@ pub(super) fn model(
     recording: &Recording,
     velocity: &[Option<f64>],
     report: &Report,
+    prediction: Option<&str>,
     units: &Units,
 ) -> Result<Written, PlotError> {
     let start = (0..recording.len())
@@ -341,7 +348,7 @@ pub(super) fn model(
     let run = simulate(&model, t, u, (x[0], v0), 2);
     let score = match (run.diverged_at, nrmse(&run.x, x)) {
         (Some(i), _) => format!("the simulation diverged at t = {} s", tick(t[i])),
-        (None, Some(e)) => format!("NRMSE {:.3}", e),
+        (None, Some(e)) => format!("NRMSE {:.1} %", 100.0 * e),
         (None, None) => "NRMSE not defined".into(),
     };
     let span = t[t.len() - 1] - t[0];
@@ -380,9 +387,10 @@ pub(super) fn model(
         overview,
         zoom: (end - width, end),
         title: format!(
-            "Recording vs. identified model, simulated from the first sample ({score}){}",
+            "Recording vs. the model, free run from the first sample: {score}{}",
             units.note()
         ),
+        prediction: prediction.map(str::to_owned),
         units,
     };
     write(base, "model", &figure)

@@ -37,12 +37,14 @@ pub struct Written {
 }
 
 /// Draws every figure of `recording`, identified as `report` says (with the options that made
-/// it), into `dir` (created if missing). Returns the files written and, for each figure that
-/// could not be drawn, a sentence saying why.
+/// it), into `dir` (created if missing); `prediction` is the short-horizon figure `lssi
+/// identify` reports, named in the model figure's title beside the free run's. Returns the
+/// files written and, for each figure that could not be drawn, a sentence saying why.
 pub fn plot_all(
     recording: &Recording,
     options: &Options,
     report: &Report,
+    prediction: Option<&str>,
     dir: &Path,
     units: &Units,
 ) -> Result<(Vec<Written>, Vec<String>), CliError> {
@@ -67,7 +69,7 @@ pub fn plot_all(
     let velocity = data::velocity(recording, &config);
     emit(
         "model",
-        draw::model(&base, recording, &velocity, report, units),
+        draw::model(&base, recording, &velocity, report, prediction, units),
     );
     emit("screening", draw::screening(&base, report, units));
     emit(

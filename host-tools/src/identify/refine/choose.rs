@@ -648,6 +648,14 @@ impl crate::identify::Report {
             })
             .collect();
         self.reported = Chosen::Refined;
+        // The simulation model follows: what is printed is what is simulated and drawn.
+        self.model = check
+            .model
+            .terms
+            .iter()
+            .filter(|(_, c)| *c != 0.0)
+            .copied()
+            .collect();
         let force = lssi_core::RestoringForce::from_terms(
             check.model.terms.iter().copied(),
             check.model.offsets[0],
