@@ -12,6 +12,13 @@
 //!    record must stay finite and within [`MAX_EXCURSION`] times the recorded range of x.
 //! 3. **f32 against f64**: the other precision must select the same terms.
 //! 4. **Something selected**: a model with no terms is no model.
+//! 5. **x varies**: a constant, or constant to within f32's resolution, x has no dynamics
+//!    (checked first, alone: [`MIN_VARIATION`]).
+//! 6. **Short-horizon simulation**: the model simulated over windows of two periods of the
+//!    dominant frequency, each from its fitted initial state, must follow the recording
+//!    (NRMSE at most [`MAX_SHORT_HORIZON_NRMSE`] %): a model that cannot is not explaining it.
+//! 7. **Terms not collinear**: the chosen terms' columns on the (low-passed) recording must
+//!    be well conditioned ([`MAX_CONDITION`]).
 
 use crate::identify::blemish::{CleanWindows, Scan};
 use crate::identify::{Report, WINDOW_CAPACITY};
@@ -23,6 +30,23 @@ use lssi_core::derivative::Taps;
 pub const MAX_UNEXPLAINED: f64 = 0.5;
 /// How far (in recorded ranges of x, about the record's midpoint) a free run may go.
 pub const MAX_EXCURSION: f64 = 10.0;
+/// Smallest variation of x (its standard deviation over its level, the mean's magnitude) that
+/// is a signal: below it x is constant to within a few steps of f32's resolution (1.2e-7).
+pub const MIN_VARIATION: f64 = 8.0 * f32::EPSILON as f64;
+/// Largest NRMSE (%) of the model's simulation over windows of [`HORIZON_PERIODS`] periods of
+/// the dominant frequency, each from its fitted initial state: above it the model cannot
+/// follow the recording even over a short horizon.
+pub const MAX_SHORT_HORIZON_NRMSE: f64 = 50.0;
+/// Largest part (%) of that NRMSE that x's noise does not account for: a deterministic signal
+/// the model misses by more is not explained (a chirp: no second-order equation follows it).
+pub const MAX_BEYOND_NOISE: f64 = 12.0;
+/// Periods of the dominant frequency in a window of the short-horizon check.
+pub const HORIZON_PERIODS: f64 = 2.0;
+/// Largest condition number of the chosen terms' columns (each scaled to unit RMS) on the
+/// recording, low-passed: above it some terms are (nearly) combinations of the others, and
+/// the split of x'' between them is set by the noise (a pure sine is x'' = −ω² x and also
+/// x'' = −ω²A sin(ωt)). A harvester's model is conditioned about 5–15.
+pub const MAX_CONDITION: f64 = 300.0;
 
 /// What the checks measured.
 #[derive(Clone, Debug, PartialEq)]
@@ -154,6 +178,271 @@ pub fn free_run_stable(recording: &Recording, report: &Report) -> Option<bool> {
     )
 }
 
+/// Whether x is constant, or constant to within [`MIN_VARIATION`] of its level: the sentence.
+pub fn constant(recording: &Recording) -> Option<String> {
+    let x: Vec<f64> = recording
+        .x
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    if x.is_empty() {
+        return None;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let sd = (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+    let level = mean.abs();
+    if sd == 0.0 || x.iter().all(|&v| v == x[0]) {
+        return Some(format!("x is constant (x = {} in every sample)", x[0]));
+    }
+    (sd <= MIN_VARIATION * level || sd <= f64::MIN_POSITIVE).then(|| {
+        format!(
+            "x is nearly constant: its standard deviation ({sd:.2e}) is {:.1e} of its level ({mean:.6e}), under f32's resolution (at least {MIN_VARIATION:.1e} needed)",
+            sd / level
+        )
+    })
+}
+
+/// What the short-horizon check measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShortHorizon {
+    /// The median window's NRMSE, % of x's standard deviation (infinite when the simulation
+    /// diverges in most windows). The median, not the pooled error: on a chaotic record the
+    /// fit of a window's initial state now and then lands in a local minimum.
+    pub nrmse_percent: f64,
+    /// The noise in x, % of its standard deviation, when it can be told: x less x low-passed
+    /// at four times its dominant frequency, scaled up to the whole band.
+    pub noise_percent: Option<f64>,
+    /// Windows simulated.
+    pub windows: usize,
+    /// A window's length, seconds.
+    pub seconds: f64,
+}
+
+impl ShortHorizon {
+    /// The part of the error the noise does not account for, %: √(NRMSE² − noise²) (the
+    /// NRMSE itself when the noise is not known).
+    pub fn beyond_noise_percent(&self) -> f64 {
+        let noise = self.noise_percent.unwrap_or(0.0);
+        (self.nrmse_percent.powi(2) - noise * noise).max(0.0).sqrt()
+    }
+}
+
+/// Windows simulated at most (spread evenly over the longest clean stretch).
+const HORIZON_WINDOWS: usize = 32;
+
+/// `s` low-passed: its transform's bins above `cut` (and their mirror images) zeroed.
+fn low_pass(s: &[f64], cut: usize) -> Vec<f64> {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    let n = s.len();
+    let mut buf: Vec<Complex<f64>> = s.iter().map(|v| Complex::new(*v, 0.0)).collect();
+    let mut planner = FftPlanner::new();
+    planner.plan_fft_forward(n).process(&mut buf);
+    for (k, c) in buf.iter_mut().enumerate() {
+        if k > cut && k < n - cut {
+            *c = Complex::new(0.0, 0.0);
+        }
+    }
+    planner.plan_fft_inverse(n).process(&mut buf);
+    buf.iter().map(|c| c.re / n as f64).collect()
+}
+
+/// The bin four times x's dominant frequency (of `period` samples) on `n` samples.
+fn low_pass_cut(n: usize, period: f64) -> usize {
+    ((4.0 * n as f64 / period).ceil() as usize).max(1)
+}
+
+/// The model simulated over windows of [`HORIZON_PERIODS`] periods of x's dominant frequency
+/// on the longest clean stretch, each from its fitted initial state (at most
+/// [`HORIZON_WINDOWS`] of them, spread evenly): the median window's NRMSE against the
+/// recording (normalised by x's standard deviation over the stretch), and the noise in x.
+/// `None` when it cannot be measured.
+pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHorizon> {
+    use crate::identify::refine::{Data, mean_period_samples, window_errors};
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let t = &recording.t[stretch.clone()];
+    let x = &recording.x[stretch.clone()];
+    let u = recording.u.as_ref().map(|u| &u[stretch.clone()]);
+    let period = mean_period_samples(x)?;
+    let length = ((HORIZON_PERIODS * period).round() as usize).max(16);
+    if x.len() < 2 * length {
+        return None;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    if !(sd > 0.0) {
+        return None;
+    }
+    let model = crate::identify::simulate::SimModel::from_report(report);
+    let slots = x.len() / length;
+    let windows = slots.min(HORIZON_WINDOWS);
+    let mut each: Vec<f64> = (0..windows)
+        .map(|w| {
+            let a = (w * slots / windows) * length;
+            let data = Data {
+                t: &t[a..a + length],
+                x: &x[a..a + length],
+                u: u.map(|u| &u[a..a + length]),
+            };
+            window_errors(&model, &data, length).map_or(f64::INFINITY, |e| {
+                100.0 * (e.rss.iter().sum::<f64>() / e.samples.max(1) as f64).sqrt() / sd
+            })
+        })
+        .collect();
+    each.sort_by(f64::total_cmp);
+    let median = each[(each.len() - 1) / 2];
+    // The noise: what lies above four times the dominant frequency, over the fraction of the
+    // band that is (white noise spreads evenly); not told when that is under half the band.
+    let head = &x[..x.len().min(1 << 16)];
+    let cut = low_pass_cut(head.len(), period);
+    let above = 1.0 - 2.0 * cut as f64 / head.len() as f64;
+    let noise_percent = (above >= 0.5).then(|| {
+        let smooth = low_pass(head, cut);
+        let rss: f64 = head.iter().zip(&smooth).map(|(a, b)| (a - b).powi(2)).sum();
+        100.0 * (rss / head.len() as f64 / above).sqrt() / sd
+    });
+    Some(ShortHorizon {
+        nrmse_percent: median,
+        noise_percent,
+        windows,
+        seconds: t[length - 1] - t[0],
+    })
+}
+
+/// The condition number of the model's terms' columns (each scaled to unit RMS) evaluated on
+/// the longest clean stretch (its first 2^16 samples), low-passed at four times the dominant
+/// frequency (so that the noise does not part columns the dynamics make equal), with v its
+/// central difference (or the measured v, low-passed); and the terms' names. `None` with
+/// fewer than two terms or when it cannot be measured.
+pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<String>)> {
+    use lssi_core::library::Term;
+    let terms: Vec<Term> = report
+        .model
+        .iter()
+        .filter(|(_, c)| *c != 0.0)
+        .map(|(t, _)| *t)
+        .collect();
+    if terms.len() < 2 {
+        return None;
+    }
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = stretch.start..stretch.end.min(stretch.start + (1 << 16));
+    let t = &recording.t[stretch.clone()];
+    let n = t.len();
+    if n < 64 {
+        return None;
+    }
+    let period = crate::identify::refine::mean_period_samples(&recording.x[stretch.clone()])?;
+    let cut = low_pass_cut(n, period);
+    let low_pass = |s: &[f64]| low_pass(s, cut);
+    let x = low_pass(&recording.x[stretch.clone()]);
+    let v = match &recording.v {
+        Some(v) => low_pass(&v[stretch.clone()]),
+        None => (0..n)
+            .map(|i| {
+                let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+                (x[b] - x[a]) / (t[b] - t[a])
+            })
+            .collect(),
+    };
+    let u = recording.u.as_ref().map(|u| low_pass(&u[stretch.clone()]));
+    // The ends are left out (the low-pass wraps around).
+    let edge = (period.ceil() as usize).min(n / 8);
+    let rows = edge..n - edge;
+    let [ox, ov] = report.offsets;
+    let mut columns: Vec<Vec<f64>> = terms
+        .iter()
+        .map(|&term| {
+            rows.clone()
+                .map(|i| {
+                    crate::identify::simulate::evaluate(
+                        term,
+                        report.omega,
+                        t[i],
+                        x[i] - ox,
+                        v[i] - ov,
+                        u.as_ref().map_or(0.0, |u| u[i]),
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    for c in &mut columns {
+        let rms = (c.iter().map(|a| a * a).sum::<f64>() / c.len() as f64).sqrt();
+        if !(rms > 0.0 && rms.is_finite()) {
+            return None;
+        }
+        c.iter_mut().for_each(|a| *a /= rms);
+    }
+    // The Gram matrix's eigenvalues (Jacobi): the condition number is √(λmax / λmin).
+    let q = columns.len();
+    let m = columns[0].len() as f64;
+    let mut g = vec![vec![0.0; q]; q];
+    for i in 0..q {
+        for j in 0..=i {
+            let d = columns[i]
+                .iter()
+                .zip(&columns[j])
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                / m;
+            g[i][j] = d;
+            g[j][i] = d;
+        }
+    }
+    for _ in 0..64 {
+        let off: f64 = (0..q)
+            .flat_map(|i| (0..q).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| g[i][j] * g[i][j])
+            .sum();
+        if off < 1e-30 {
+            break;
+        }
+        for p in 0..q {
+            for r in p + 1..q {
+                if g[p][r].abs() < 1e-300 {
+                    continue;
+                }
+                let theta = (g[r][r] - g[p][p]) / (2.0 * g[p][r]);
+                let tan = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let tan = if theta == 0.0 { 1.0 } else { tan };
+                let cos = 1.0 / (tan * tan + 1.0).sqrt();
+                let sin = tan * cos;
+                for k in 0..q {
+                    let (a, b) = (g[k][p], g[k][r]);
+                    g[k][p] = cos * a - sin * b;
+                    g[k][r] = sin * a + cos * b;
+                }
+                for k in 0..q {
+                    let (a, b) = (g[p][k], g[r][k]);
+                    g[p][k] = cos * a - sin * b;
+                    g[r][k] = sin * a + cos * b;
+                }
+            }
+        }
+    }
+    let eigen: Vec<f64> = (0..q).map(|i| g[i][i]).collect();
+    let hi = eigen.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let lo = eigen
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+        .max(hi * 1e-32);
+    let names = terms
+        .iter()
+        .map(|term| {
+            let mut name = String::new();
+            let _ = term.write_name(&mut name, report.omega);
+            name
+        })
+        .collect();
+    Some(((hi / lo).sqrt(), names))
+}
+
 /// Runs the checks on `report` (made from `recording` with `config`); `other` is the same
 /// recording identified in the other precision, if it was.
 pub fn assess(
@@ -168,6 +457,10 @@ pub fn assess(
         precisions_agree: None,
         failures: Vec::new(),
     };
+    if let Some(why) = constant(recording) {
+        quality.failures.push(why);
+        return quality;
+    }
     if report.terms.is_empty() {
         quality
             .failures
@@ -191,6 +484,40 @@ pub fn assess(
     if quality.stable == Some(false) {
         quality.failures.push(format!(
             "the model's free run from the recording's first state diverges (leaves {MAX_EXCURSION} times the recorded range of x)"
+        ));
+    }
+    if quality.stable != Some(false)
+        && let Some(h) = short_horizon(recording, report)
+    {
+        let over = format!(
+            "over {HORIZON_PERIODS} periods of its dominant frequency ({:.3} s) from fitted initial states",
+            h.seconds
+        );
+        if !(h.nrmse_percent <= MAX_SHORT_HORIZON_NRMSE) {
+            quality.failures.push(format!(
+                "the model's simulation cannot follow the recording {over} (median NRMSE {} over {} windows; at most {MAX_SHORT_HORIZON_NRMSE:.0} %)",
+                if h.nrmse_percent.is_finite() {
+                    format!("{:.0} %", h.nrmse_percent)
+                } else {
+                    "unbounded: the simulation diverges".to_owned()
+                },
+                h.windows
+            ));
+        } else if h.beyond_noise_percent() > MAX_BEYOND_NOISE {
+            quality.failures.push(format!(
+                "the model's simulation misses the recording {over} by {:.0} % of x's standard deviation beyond its noise ({:.1} %; median of {} windows; at most {MAX_BEYOND_NOISE:.0} %)",
+                h.beyond_noise_percent(),
+                h.noise_percent.unwrap_or(0.0),
+                h.windows
+            ));
+        }
+    }
+    if let Some((condition, names)) = collinearity(recording, report)
+        && condition > MAX_CONDITION
+    {
+        quality.failures.push(format!(
+            "the model's terms {} are collinear on this recording (condition number {condition:.2e} of their columns, at most {MAX_CONDITION:.0}): the data cannot tell them apart",
+            names.join(", ")
         ));
     }
     if let Some(other) = other {

@@ -6,6 +6,7 @@ mod bundled;
 mod clean_failures;
 mod cli;
 mod eveh;
+mod gate;
 mod generate;
 mod libraries;
 mod log_cli;
