@@ -315,8 +315,12 @@ pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHori
 /// The condition number of the model's terms' columns (each scaled to unit RMS) evaluated on
 /// the longest clean stretch (its first 2^16 samples), low-passed at four times the dominant
 /// frequency (so that the noise does not part columns the dynamics make equal), with v its
-/// central difference (or the measured v, low-passed); and the terms' names. `None` with
-/// fewer than two terms or when it cannot be measured.
+/// central difference (or the measured v, low-passed); and the names of the terms that are
+/// collinear (those with a weight of at least 0.2 in the direction of the least singular
+/// value). The names are empty when no term of x or v is among them: collinear excitation
+/// terms alone (a measured u that is the forcing cos(Ωt)) split the excitation between them
+/// and leave the dynamics as they are. `None` with fewer than two terms or when it cannot be
+/// measured.
 pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<String>)> {
     use lssi_core::library::Term;
     let terms: Vec<Term> = report
@@ -394,6 +398,9 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
             g[j][i] = d;
         }
     }
+    let mut vectors: Vec<Vec<f64>> = (0..q)
+        .map(|i| (0..q).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect();
     for _ in 0..64 {
         let off: f64 = (0..q)
             .flat_map(|i| (0..q).filter(move |&j| j != i).map(move |j| (i, j)))
@@ -422,6 +429,11 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
                     g[p][k] = cos * a - sin * b;
                     g[r][k] = sin * a + cos * b;
                 }
+                for row in vectors.iter_mut() {
+                    let (a, b) = (row[p], row[r]);
+                    row[p] = cos * a - sin * b;
+                    row[r] = sin * a + cos * b;
+                }
             }
         }
     }
@@ -432,11 +444,20 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
         .copied()
         .fold(f64::INFINITY, f64::min)
         .max(hi * 1e-32);
-    let names = terms
+    // The direction of the least eigenvalue: column `least` of the rotations.
+    let least = (0..q)
+        .min_by(|&a, &b| eigen[a].total_cmp(&eigen[b]))
+        .unwrap_or(0);
+    let involved: Vec<usize> = (0..q).filter(|&i| vectors[i][least].abs() >= 0.2).collect();
+    let dynamics = involved
         .iter()
-        .map(|term| {
+        .any(|&i| matches!(terms[i], Term::Monomial { .. }));
+    let names = involved
+        .iter()
+        .filter(|_| dynamics)
+        .map(|&i| {
             let mut name = String::new();
-            let _ = term.write_name(&mut name, report.omega);
+            let _ = terms[i].write_name(&mut name, report.omega);
             name
         })
         .collect();
@@ -514,6 +535,7 @@ pub fn assess(
     }
     if let Some((condition, names)) = collinearity(recording, report)
         && condition > MAX_CONDITION
+        && !names.is_empty()
     {
         quality.failures.push(format!(
             "the model's terms {} are collinear on this recording (condition number {condition:.2e} of their columns, at most {MAX_CONDITION:.0}): the data cannot tell them apart",

@@ -224,6 +224,26 @@ fn a_pure_sine_is_not_given_collinear_terms() {
 }
 
 #[test]
+fn collinear_excitation_terms_alone_are_not_withheld() {
+    // A measured u that is the forcing 0.98 cos(21.4t): cos(21.4t) and u may share the
+    // excitation, the dynamics are as they are.
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(dir.path(), "input.csv", &["eveh", "--input"]);
+    let out = Command::new(LSSI)
+        .arg("identify")
+        .arg(&path)
+        .args(["--no-refine", "--poly-order", "5", "--harmonics", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
 fn harvester_and_paper_recordings_still_pass() {
     let dir = tempfile::tempdir().unwrap();
     let mut paths = Vec::new();
