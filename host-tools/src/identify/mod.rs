@@ -496,7 +496,7 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
     // The fundamental, not a harmonic: a nonlinear response to a forcing at Ω has lines at
     // 2Ω and 3Ω, often stronger in x'' (which weighs a line by ω²) than the one at Ω; and a
-    // record of a few periods may show no peak at Ω at all. ω/2 and ω/3 of every
+    // record of a few periods may show no peak at Ω at all. ω/2 … ω/5 of every
     // candidate are refined as the peaks are (over their resolution width / k). The
     // sub-multiple of the chosen ω is taken when it explains about as much (a residual within
     // 3 % of ω's, and at least half of what ω explains beyond the polynomial terms alone).
@@ -508,7 +508,7 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     let lowest = bin_omega(first.max(1));
     let mut subs: Vec<(f64, f64, f64)> = Vec::new();
     for &(w, _) in &candidates {
-        for k in [2.0, 3.0] {
+        for k in [2.0, 3.0, 4.0, 5.0] {
             if w / k >= lowest {
                 let (s, r) = refine(w / k, resolution / k);
                 if r.is_finite() {

@@ -109,6 +109,20 @@ fn omega_is_the_fundamental_not_its_third_harmonic() {
 }
 
 #[test]
+fn omega_below_the_natural_frequency_is_the_fundamental() {
+    // A single well driven at 10 rad/s (its linear resonance is 18.3 rad/s): x'' is strongest
+    // near 4Ω (was 39.86).
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "slow.csv",
+        &["eveh", "--wells", "monostable", "--omega", "10"],
+    );
+    let w = omega(&path);
+    assert!((w - 10.0).abs() < 0.01, "Ω = {w}");
+}
+
+#[test]
 fn omega_on_a_short_finely_sampled_record() {
     // 3 s at 50 kHz: ten periods, and the spectral peak most of a resolution width off the
     // line (was 21.27).
