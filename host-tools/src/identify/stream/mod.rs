@@ -1,0 +1,252 @@
+//! Large recordings: read in chunks, configured from an excerpt, identified in one pass.
+//!
+//! [`crate::recording::Recording::read`] holds a whole file (its text and its columns) and
+//! [`crate::identify::configure`] estimates Ω on all of it: fine for the shipped recordings,
+//! not for 10⁷ rows. Above [`STREAM_BYTES`] `lssi identify` and `lssi info` come here instead:
+//!
+//! 1. [`CsvStream`] reads the file with the `csv` crate's reader in 64 KiB chunks, one sample
+//!    at a time, with the errors (and line numbers) of [`crate::recording::parse_csv`].
+//! 2. The first [`StreamOptions::excerpt_rows`] rows are kept as a [`Recording`] and
+//!    [`crate::identify::configure`] decides on it, as it would on a small file: the sample
+//!    period, the derivative window and test function, and Ω.
+//! 3. Ω, when it is estimated, is refined on probes of [`StreamOptions::probe_rows`] rows read
+//!    at byte offsets 2, 4, 8, … times the excerpt's and at the end of the file (phase
+//!    tracking): each step doubles the span of the fit of the polynomial library plus
+//!    sin/cos(Ωt), and looks for the best Ω within a quarter of the ambiguity 2π/span of the
+//!    last one. Then [`SPREAD_PROBES`] − 1 more probes spread evenly over the file, and a last
+//!    search on all of them. Ω must be close: the damping term takes up what a phase drift of
+//!    the forcing leaves (10⁻⁵ rad/s on 100 s moves it by 2 %); on 10⁷ rows the error is
+//!    ~10⁻⁸ rad/s where the excerpt alone leaves ~10⁻⁴.
+//! 4. The identifier takes the excerpt, then the rest of the file chunk by chunk; nothing of
+//!    the file is held but the excerpt.
+//!
+//! Blemishes as in memory ([`crate::identify::blemish`]): the excerpt is scanned as a small
+//! file is (NaN, time gaps and spikes left out or repaired, each named); the rest goes through
+//! the spike rule on a sliding run of seven samples with the excerpt's thresholds (a spike is
+//! repaired by the cubic through its neighbours and named), and the identifier itself leaves
+//! out non-finite samples and restarts on time gaps. The configuration and the Ω probes take
+//! repaired values and clean windows only. The quality gate ([`crate::identify::quality`])
+//! runs on the excerpt (its own model, configured as the file's; the whole file is not held):
+//! a failure withholds the file's model, exit status 3, as for a small file.
+//!
+//! A file that turns out to end within the excerpt is identified by
+//! [`crate::identify::identify_recording`] itself, so the result is the in-memory one.
+//! Not streamed: `--track` and `--refine` (they need the whole signal) and batches. A streamed
+//! file is not refined on simulation error (the default for one file in memory): the output says
+//! so (a warning naming the file), and `--refine` reads it whole.
+
+mod probe;
+mod reader;
+mod run;
+
+use std::path::Path;
+
+use crate::identify::{self, IdentifyError, Options, Report, configure};
+use crate::recording::{ColumnNames, RecordingError};
+
+use probe::refine_omega;
+pub use reader::{CsvStream, describe_file};
+use run::run;
+
+/// Probes spread evenly over a large file for the last refinement of Ω (one fewer: the
+/// end of the file is the doubling chain's last probe).
+pub const SPREAD_PROBES: usize = 16;
+
+/// Files larger than this (bytes) are streamed by `lssi identify` and `lssi info`; smaller
+/// ones are read whole, as before.
+pub const STREAM_BYTES: u64 = 8 << 20;
+
+/// How a large recording is streamed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamOptions {
+    /// Rows read first and kept: the configuration (sample period, window, Ω) comes from them.
+    pub excerpt_rows: usize,
+    /// Rows of each probe that refines Ω over the whole file.
+    pub probe_rows: usize,
+}
+
+impl Default for StreamOptions {
+    fn default() -> Self {
+        Self {
+            excerpt_rows: 1 << 16,
+            probe_rows: 1 << 13,
+        }
+    }
+}
+
+/// Why a large recording could not be identified.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError {
+    /// The file cannot be read as a recording.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The recording cannot be identified.
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+}
+
+/// The most rejected samples named one by one in [`Report::rejections`] (the count is
+/// [`Report::rejected`]).
+pub const NAMED_REJECTIONS: usize = 100;
+
+/// What [`identify_file`] did besides the report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StreamSummary {
+    /// Whether the file was streamed (false: it ended within the excerpt and was identified
+    /// in memory).
+    pub streamed: bool,
+    /// Ω from the excerpt alone, when it was estimated.
+    pub excerpt_omega: Option<f64>,
+    /// Probes read to refine Ω.
+    pub probes: usize,
+    /// The quality gate ([`crate::identify::quality`]) on the excerpt (the whole file when it
+    /// was not streamed): the whole file is not held, so the gate's checks (which run the
+    /// identifier again in the other precision and simulate the model) are made on the
+    /// excerpt's own model, configured as the file's; a failure withholds the file's model.
+    pub quality: crate::identify::quality::Quality,
+    /// Rows the gate saw.
+    pub gated_rows: usize,
+}
+
+/// Identifies the recording at `path` without holding it: see the module docs. `progress` is
+/// called now and then with the bytes read so far and the file's size.
+pub fn identify_file(
+    path: impl AsRef<Path>,
+    columns: &ColumnNames,
+    options: &Options,
+    stream: &StreamOptions,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<(Report, StreamSummary), StreamError> {
+    let path = path.as_ref();
+    let mut csv = CsvStream::open(path, columns)?;
+    let excerpt = csv.read_rows(stream.excerpt_rows.max(1))?;
+    if excerpt.is_empty() {
+        return Err(RecordingError::NoData {
+            path: path.to_owned(),
+        }
+        .into());
+    }
+    if excerpt.len() < stream.excerpt_rows {
+        let (report, quality) = identify::quality::identify_checked(&excerpt, options)?;
+        let summary = StreamSummary {
+            streamed: false,
+            excerpt_omega: None,
+            probes: 0,
+            quality,
+            gated_rows: excerpt.len(),
+        };
+        return Ok((report, summary));
+    }
+    let (_, quality) = identify::quality::identify_checked(&excerpt, options)?;
+    let clock = std::time::Instant::now();
+    let (mut config, estimated) = configure(&excerpt, options)?;
+    debug(&format!("configure {:?}", clock.elapsed()));
+    let mut summary = StreamSummary {
+        streamed: true,
+        excerpt_omega: None,
+        probes: 0,
+        gated_rows: excerpt.len(),
+        quality,
+    };
+    if estimated {
+        summary.excerpt_omega = Some(config.omega);
+        let (omega, probes) = refine_omega(&excerpt, &config, options, csv.bytes_read(), stream)?;
+        config.omega = omega;
+        summary.probes = probes;
+        debug(&format!(
+            "refine {:?} omega {omega} probes {probes}",
+            clock.elapsed()
+        ));
+    }
+    let report = if options.f32 {
+        run::<f32>(csv, excerpt, config, estimated, &mut progress)
+    } else {
+        run::<f64>(csv, excerpt, config, estimated, &mut progress)
+    }?;
+    Ok((report, summary))
+}
+
+fn debug(text: &str) {
+    if std::env::var_os("LSSI_STREAM_DEBUG").is_some() {
+        eprintln!("lssi: stream: {text}");
+    }
+}
+
+/// Whether `lssi identify` and `lssi info` stream the file at `path` (it is larger than
+/// [`STREAM_BYTES`]).
+pub fn is_large(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() > STREAM_BYTES)
+}
+
+/// `lssi identify FILE` for a large file: as [`crate::commands::identify::run`] prints, with a
+/// progress bar on stderr when it is a terminal.
+pub fn identify_command(
+    path: &Path,
+    columns: &ColumnNames,
+    options: &Options,
+    json: bool,
+    note: Option<&str>,
+) -> Result<(), crate::error::CliError> {
+    use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+    use std::io::IsTerminal;
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::with_draw_target(Some(size), ProgressDrawTarget::stderr());
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:30} {bytes}/{total_bytes} {elapsed} (eta {eta})")
+        {
+            bar.set_style(style);
+        }
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let result = identify_file(
+        path,
+        columns,
+        options,
+        &StreamOptions::default(),
+        |read, _| bar.set_position(read),
+    );
+    bar.finish_and_clear();
+    let (report, summary) = result.map_err(|e| match e {
+        StreamError::Recording(e) => crate::error::CliError::from(e),
+        StreamError::Identify(e) => crate::error::CliError::from(e),
+    })?;
+    const NAMED: usize = 5;
+    for warning in report.rejections.iter().take(NAMED) {
+        eprintln!("lssi: warning: {warning}.");
+    }
+    let rejected = usize::try_from(report.rejected).unwrap_or(usize::MAX);
+    if rejected > NAMED {
+        eprintln!(
+            "lssi: warning: {} more samples were left out ({} in all).",
+            rejected - NAMED,
+            rejected
+        );
+    }
+    // Read in chunks, the recording is not held: the quality gate ran on the excerpt.
+    let mut warnings = identify::batch::warnings(&report);
+    if !summary.quality.passed() {
+        warnings.extend(summary.quality.failures.iter().cloned());
+        if json {
+            crate::outln!("{}", identify::json_text(&report, None, &warnings));
+        }
+        return Err(crate::error::CliError::NoDynamics(format!(
+            "no deterministic dynamics found in {} (its first {} rows, on which the quality gate of a file read in chunks runs): {}.",
+            path.display(),
+            summary.gated_rows,
+            summary.quality.failures.join("; ")
+        )));
+    }
+    if let Some(note) = note {
+        eprintln!("lssi: warning: {note}.");
+    }
+    if json {
+        warnings.extend(note.map(str::to_owned));
+        crate::outln!("{}", identify::json_text(&report, None, &warnings));
+    } else {
+        crate::out!("{}", identify::render_reported(&report, None, note, "[x]"));
+    }
+    Ok(())
+}

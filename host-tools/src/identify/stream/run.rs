@@ -1,0 +1,231 @@
+//! Running: the identifier over the excerpt, then over the rest of the stream chunk by
+//! chunk, with the spike rule applied on a sliding run of seven samples.
+
+use lssi_core::{Config, Identifier, Real};
+
+use super::{CsvStream, NAMED_REJECTIONS, StreamError};
+use crate::identify::blemish::Feed;
+use crate::identify::{self, IdentifyError, Report, TERM_CAPACITY, WINDOW_CAPACITY};
+use crate::recording::{Recording, Sample};
+
+/// The identifier over the excerpt, then over the rest of the stream.
+pub(super) fn run<T: Real>(
+    mut csv: CsvStream,
+    excerpt: Recording,
+    config: Config,
+    omega_estimated: bool,
+    progress: &mut impl FnMut(u64, u64),
+) -> Result<Report, StreamError> {
+    let file = excerpt.path.display().to_string();
+    let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
+        Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    let mut rejections = Vec::new();
+    let mut push = |i: usize, s: Sample| {
+        let sample = lssi_core::Sample {
+            t: s.t,
+            x: T::from_f64(s.x),
+            v: s.v.map(T::from_f64),
+            u: s.u.map(T::from_f64),
+        };
+        if let Err(why) = identifier.push(sample)
+            && rejections.len() < NAMED_REJECTIONS
+        {
+            rejections.push(format!(
+                "{file}: data row {} (t = {}): {why}; it was left out",
+                i + 1,
+                s.t
+            ));
+        }
+    };
+    // The excerpt as in memory: its blemishes found by the scan, spikes repaired, the other
+    // blemished samples left out (each named).
+    let scan = crate::identify::blemish::Scan::of(&excerpt);
+    let mut blemished = scan.skipped() as u64;
+    let mut notes: Vec<String> = scan
+        .blemishes
+        .iter()
+        .take(NAMED_REJECTIONS)
+        .map(|b| format!("{file}: {}", b.sentence()))
+        .collect();
+    for (i, s) in excerpt.samples().enumerate() {
+        match scan.feed(i) {
+            Feed::Skip => {}
+            Feed::AsIs => push(i, s),
+            Feed::Repaired(r) => push(
+                i,
+                Sample {
+                    x: r.x,
+                    v: r.v,
+                    u: r.u,
+                    ..s
+                },
+            ),
+        }
+    }
+    // The rest: the spike rule with the excerpt's thresholds, on a sliding run of seven
+    // samples (a spike's residual against its neighbours'); a spike is repaired as in memory.
+    // (Non-finite values and time gaps the identifier itself leaves out and restarts on.)
+    let mut channels = vec![excerpt.x.clone()];
+    channels.extend(excerpt.v.clone());
+    channels.extend(excerpt.u.clone());
+    let limits: Vec<Option<(f64, f64)>> = channels
+        .iter()
+        .map(|c| crate::identify::blemish::spike_limit(c, &scan))
+        .collect();
+    drop(channels);
+    let mut spikes = SpikeRepair::new(limits, scan.dt);
+    let mut i = excerpt.len();
+    drop(excerpt);
+    while let Some(s) = csv.next_sample()? {
+        if let Some((j, out, spike)) = spikes.push(i, s) {
+            if let Some(value) = spike {
+                blemished += 1;
+                if notes.len() < NAMED_REJECTIONS {
+                    notes.push(format!(
+                        "{file}: data row {} (t = {}): an isolated spike ({value:e}); it was replaced by the cubic through its four neighbours",
+                        j + 1,
+                        out.t
+                    ));
+                }
+            }
+            push(j, out);
+        }
+        i += 1;
+        if i.is_multiple_of(1 << 16) {
+            progress(csv.bytes_read(), csv.size());
+        }
+    }
+    for (j, out) in spikes.finish() {
+        push(j, out);
+    }
+    progress(csv.size(), csv.size());
+    identifier.screen();
+    let counters = *identifier.counters();
+    let model = identifier.model().ok_or_else(|| {
+        IdentifyError(format!(
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            counters.accepted,
+            counters.rejected(),
+            identifier.library().len()
+        ))
+    })?;
+    let mut report = identify::report(
+        model,
+        &config,
+        omega_estimated,
+        counters.rejected() + blemished,
+        std::any::type_name::<T>(),
+    );
+    notes.extend(rejections);
+    report.rejections = notes;
+    Ok(report)
+}
+
+/// The spike rule on a stream: samples go through a run of seven; the middle one is a spike
+/// when its cubic residual r (against its four neighbours) is beyond the channel's limit and
+/// [`crate::identify::blemish::SPIKE_DOMINANCE`] times its neighbours' r, all seven finite and
+/// evenly spaced. A spike is replaced by the cubic's value.
+struct SpikeRepair {
+    limits: Vec<Option<(f64, f64)>>,
+    dt: f64,
+    run: std::collections::VecDeque<(usize, Sample)>,
+    /// Repaired spikes still in the run: (index, measured value).
+    judged: Vec<(usize, f64)>,
+}
+
+impl SpikeRepair {
+    fn new(limits: Vec<Option<(f64, f64)>>, dt: f64) -> Self {
+        Self {
+            limits,
+            dt,
+            run: std::collections::VecDeque::with_capacity(8),
+            judged: Vec::new(),
+        }
+    }
+
+    fn channel(s: &Sample, c: usize) -> Option<f64> {
+        match c {
+            0 => Some(s.x),
+            1 => s.v.or(s.u),
+            _ => s.u,
+        }
+    }
+
+    fn set(s: &mut Sample, c: usize, value: f64) {
+        match c {
+            0 => s.x = value,
+            1 if s.v.is_some() => s.v = Some(value),
+            _ => s.u = Some(value),
+        }
+    }
+
+    /// Takes sample `i`; gives back the sample leaving the run (its index, the sample,
+    /// and the spike's measured value when it was repaired).
+    fn push(&mut self, i: usize, s: Sample) -> Option<(usize, Sample, Option<f64>)> {
+        self.run.push_back((i, s));
+        let mut spike = None;
+        if self.run.len() == 7 && self.dt > 0.0 {
+            let even = self.run.iter().zip(self.run.iter().skip(1)).all(|(a, b)| {
+                let step = b.1.t - a.1.t;
+                step > 0.5 * self.dt && step < 1.5 * self.dt
+            });
+            if even {
+                for c in 0..self.limits.len() {
+                    let Some((centre, limit)) = self.limits[c] else {
+                        continue;
+                    };
+                    let v: Vec<f64> = self
+                        .run
+                        .iter()
+                        .map(|(_, s)| Self::channel(s, c).unwrap_or(f64::NAN))
+                        .collect();
+                    let cubic = |k: usize| {
+                        -(v[k - 2] / 6.0) + v[k - 1] / 1.5 + v[k + 1] / 1.5 - v[k + 2] / 6.0
+                    };
+                    let size = |k: usize| {
+                        let r = v[k] - cubic(k) - centre;
+                        if r.is_finite() {
+                            r.abs()
+                        } else {
+                            f64::INFINITY
+                        }
+                    };
+                    let around = v.iter().all(|x| x.is_finite());
+                    if !around {
+                        continue;
+                    }
+                    let here = size(3);
+                    let neighbours = size(2).max(size(4));
+                    if here > limit
+                        && here >= crate::identify::blemish::SPIKE_DOMINANCE * neighbours
+                    {
+                        let value = cubic(3);
+                        if value.is_finite() {
+                            spike = Some(v[3]);
+                            Self::set(&mut self.run[3].1, c, value);
+                        }
+                    }
+                }
+            }
+        }
+        // The middle one was just judged; it leaves the run three samples later.
+        if let Some(value) = spike {
+            self.judged.push((self.run[3].0, value));
+        }
+        if self.run.len() < 7 {
+            return None;
+        }
+        let (j, out) = self.run.pop_front()?;
+        let verdict = self
+            .judged
+            .iter()
+            .position(|(k, _)| *k == j)
+            .map(|p| self.judged.remove(p).1);
+        Some((j, out, verdict))
+    }
+
+    /// The samples still in the run, in order.
+    fn finish(&mut self) -> Vec<(usize, Sample)> {
+        self.run.drain(..).collect()
+    }
+}
