@@ -266,7 +266,23 @@ pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHori
     let x = &recording.x[stretch.clone()];
     let u = recording.u.as_ref().map(|u| &u[stretch.clone()]);
     let period = mean_period_samples(x)?;
-    let length = ((HORIZON_PERIODS * period).round() as usize).max(16);
+    let model = crate::identify::simulate::SimModel::from_report(report);
+    // The horizon: periods of the dominant frequency, or of the forcing when that is shorter
+    // (a chaotic double well's strongest line is its slow hopping between the wells, over
+    // which no model follows it; the forcing's period is what it can be expected to).
+    let step = (t[t.len() - 1] - t[0]) / (t.len() - 1).max(1) as f64;
+    let forcing = model
+        .terms
+        .iter()
+        .filter_map(|(term, c)| match term {
+            lssi_core::Term::Sin(k) | lssi_core::Term::Cos(k) if *c != 0.0 => Some(*k),
+            _ => None,
+        })
+        .min()
+        .filter(|_| report.omega > 0.0 && step > 0.0)
+        .map(|k| 2.0 * std::f64::consts::PI / (f64::from(k) * report.omega) / step);
+    let horizon = forcing.map_or(period, |f| f.min(period));
+    let length = ((HORIZON_PERIODS * horizon).round() as usize).max(16);
     if x.len() < 2 * length {
         return None;
     }
@@ -276,7 +292,6 @@ pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHori
     if !(sd > 0.0) {
         return None;
     }
-    let model = crate::identify::simulate::SimModel::from_report(report);
     let slots = x.len() / length;
     let windows = slots.min(HORIZON_WINDOWS);
     let mut each: Vec<f64> = (0..windows)
@@ -511,7 +526,7 @@ pub fn assess(
         && let Some(h) = short_horizon(recording, report)
     {
         let over = format!(
-            "over {HORIZON_PERIODS} periods of its dominant frequency ({:.3} s) from fitted initial states",
+            "over {HORIZON_PERIODS} periods of its dominant frequency or forcing ({:.3} s) from fitted initial states",
             h.seconds
         );
         if !(h.nrmse_percent <= MAX_SHORT_HORIZON_NRMSE) {
