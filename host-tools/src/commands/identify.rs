@@ -254,9 +254,17 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
         Ok(done) => done,
         Err(Failure::Withheld(sentence, reasons, report)) => {
             if args.json {
+                // No "terms" at the top: a withheld model is not the answer. It is shown
+                // under "withheld_model", beside why.
                 let mut warnings = identify::pipeline::warnings(&report);
                 warnings.extend(reasons);
-                crate::outln!("{}", identify::json_text(&report, None, &warnings));
+                // "warnings" last, as in every other `--json` object.
+                crate::outln!(
+                    "{{\"withheld\":true,\"reason\":{},\"withheld_model\":{},\"warnings\":{}}}",
+                    serde_json::Value::from(sentence.as_str()),
+                    identify::json_text(&report, None, &[]),
+                    serde_json::Value::from(warnings)
+                );
             }
             return Err(CliError::NoDynamics(sentence));
         }

@@ -64,6 +64,17 @@ fn assert_refused(path: &Path) {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let warnings = json["warnings"].as_array().unwrap();
     assert!(!warnings.is_empty(), "{name}: {json}");
+    // A withheld model says so, and is not given as the answer.
+    assert_eq!(json["withheld"], true, "{name}: {json}");
+    assert!(json.get("terms").is_none(), "{name}: {json}");
+    assert!(json["withheld_model"]["terms"].is_array(), "{name}: {json}");
+    assert!(
+        json["reason"]
+            .as_str()
+            .unwrap()
+            .contains("no deterministic dynamics found"),
+        "{name}: {json}"
+    );
     // "warnings" is the last key.
     let text = String::from_utf8_lossy(&out.stdout);
     let at = text.find("\"warnings\"").unwrap();
