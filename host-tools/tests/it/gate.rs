@@ -12,22 +12,7 @@ use std::process::{Command, Output};
 
 const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
 
-/// Standard normal numbers from a fixed seed (xorshift64* and Box–Muller).
-struct Gauss(u64);
-
-impl Gauss {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        ((self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn next(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+use crate::quality::Gauss;
 
 /// A recording of `n` samples at `rate` Hz, x(t) given (shortest round-trip decimals).
 fn write(dir: &Path, name: &str, n: usize, rate: f64, mut x: impl FnMut(f64) -> f64) -> PathBuf {

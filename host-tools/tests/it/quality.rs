@@ -13,17 +13,17 @@ const SAMPLES: usize = 20_000;
 const DT: f64 = 0.0005;
 
 /// Standard normal numbers from a fixed seed (xorshift64* and Box–Muller).
-struct Gauss(u64);
+pub(crate) struct Gauss(pub(crate) u64);
 
 impl Gauss {
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;
         ((self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
-    fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         let (a, b) = (self.uniform(), self.uniform());
         (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
     }

@@ -68,7 +68,7 @@ pub use summary::{Candidate, Summary, SupportChange, TermSummary};
 use serde::Serialize;
 
 use crate::identify::simulate::SimModel;
-use shooting::{Shape, Solution, least_squares, rss, segments};
+use shooting::{Shape, Solution, least_squares, segments};
 
 /// Samples `[a, b)` of a recording.
 type Span = (usize, usize);
@@ -285,16 +285,6 @@ fn fit_of(rss: f64, x: &[f64]) -> Fit {
     }
 }
 
-/// The simulation error of `model` on `data`, its coefficients fixed and the initial state
-/// of each segment of `segment` samples fitted (`segment ≥ data length`: one free run).
-/// `None` when it diverges.
-pub fn prediction_fit(model: &SimModel, data: &Data, segment: usize) -> Option<Fit> {
-    let (shape, c) = Shape::on(model, data);
-    let segs = segments(0, data.len(), segment.min(data.len()));
-    let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
-    Some(fit_of(s.rss, data.x))
-}
-
 /// Short-horizon prediction errors: `data` cut into windows of `length` samples, the model
 /// simulated over each from its own fitted initial state (its coefficients fixed).
 #[derive(Clone, Debug, PartialEq)]
@@ -383,9 +373,11 @@ pub fn free_run(model: &SimModel, data: &Data, start: (f64, f64)) -> Option<Vec<
 /// A free run of `model` on `data` from rest (x₀ = v₀ = 0 in recording coordinates) or from
 /// a given state: the error of a simulation from the input alone.
 pub fn free_run_fit(model: &SimModel, data: &Data, start: (f64, f64)) -> Option<Fit> {
-    let (shape, c) = Shape::on(model, data);
-    let n = data.len();
-    let mut out = vec![0.0; n];
-    let rss = rss(&shape, &c, data, &[(0, n)], &[start], &mut out)?;
-    Some(fit_of(rss, data.x))
+    let simulated = free_run(model, data, start)?;
+    let rss = simulated
+        .iter()
+        .zip(data.x)
+        .map(|(s, x)| (s - x).powi(2))
+        .sum::<f64>();
+    rss.is_finite().then(|| fit_of(rss, data.x))
 }

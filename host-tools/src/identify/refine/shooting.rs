@@ -18,6 +18,25 @@ pub(crate) struct Shape {
     pub(crate) substeps: usize,
 }
 
+/// `base`ⁿ by products (no powi call).
+fn power(base: f64, n: u8) -> f64 {
+    (0..n).fold(1.0, |p, _| p * base)
+}
+
+/// One library term's value with the excitation's phase given as (sin Ωt, cos Ωt): a
+/// harmonic by complex powers of it, a monomial by products.
+fn term_value(term: Term, (s1, c1): (f64, f64), x: f64, v: f64, u: f64) -> f64 {
+    match term {
+        Term::Constant => 1.0,
+        Term::Monomial { px, pv } => power(x, px) * power(v, pv),
+        Term::Sin(k) | Term::Cos(k) => {
+            let (s, c) = (1..k).fold((s1, c1), |(s, c), _| (s * c1 + c * s1, c * c1 - s * s1));
+            if matches!(term, Term::Sin(_)) { s } else { c }
+        }
+        Term::Input => u,
+    }
+}
+
 /// The most RK4 steps per sample interval.
 pub(crate) const MAX_SUBSTEPS: usize = 8;
 
@@ -77,23 +96,10 @@ impl Shape {
     /// powers of it and the monomials by products, without a sin, cos or powi call (the
     /// simulations here make 16 evaluations a sample, and libm's cos was half the time).
     pub(crate) fn acceleration(&self, c: &[f64], phase: (f64, f64), x: f64, v: f64, u: f64) -> f64 {
-        let power = |base: f64, n: u8| (0..n).fold(1.0, |p, _| p * base);
-        let harmonic = |k: u8| {
-            let (s1, c1) = phase;
-            (1..k).fold((s1, c1), |(s, c), _| (s * c1 + c * s1, c * c1 - s * s1))
-        };
         self.terms
             .iter()
             .zip(c)
-            .map(|(&term, &c)| {
-                c * match term {
-                    Term::Constant => 1.0,
-                    Term::Monomial { px, pv } => power(x, px) * power(v, pv),
-                    Term::Sin(k) => harmonic(k).0,
-                    Term::Cos(k) => harmonic(k).1,
-                    Term::Input => u,
-                }
-            })
+            .map(|(&term, &c)| c * term_value(term, phase, x, v, u))
             .sum()
     }
 
@@ -114,32 +120,23 @@ impl Shape {
         (x, v, u): (f64, f64, f64),
         theta: &mut [f64],
     ) -> (f64, f64, f64) {
-        let power = |base: f64, n: u8| (0..n).fold(1.0, |p, _| p * base);
-        let harmonic = |k: u8| {
-            let (s1, c1) = phase;
-            (1..k).fold((s1, c1), |(s, c), _| (s * c1 + c * s1, c * c1 - s * s1))
-        };
         let (mut a, mut ax, mut av) = (0.0, 0.0, 0.0);
         for (j, (&term, &c)) in self.terms.iter().zip(c).enumerate() {
-            let (value, dx, dv) = match term {
-                Term::Constant => (1.0, 0.0, 0.0),
-                Term::Monomial { px, pv } => {
-                    let (xp, vp) = (power(x, px), power(v, pv));
-                    let dx = if px > 0 {
-                        f64::from(px) * power(x, px - 1) * vp
+            let value = term_value(term, phase, x, v, u);
+            let (dx, dv) = match term {
+                Term::Monomial { px, pv } => (
+                    if px > 0 {
+                        f64::from(px) * power(x, px - 1) * power(v, pv)
                     } else {
                         0.0
-                    };
-                    let dv = if pv > 0 {
-                        f64::from(pv) * xp * power(v, pv - 1)
+                    },
+                    if pv > 0 {
+                        f64::from(pv) * power(x, px) * power(v, pv - 1)
                     } else {
                         0.0
-                    };
-                    (xp * vp, dx, dv)
-                }
-                Term::Sin(k) => (harmonic(k).0, 0.0, 0.0),
-                Term::Cos(k) => (harmonic(k).1, 0.0, 0.0),
-                Term::Input => (u, 0.0, 0.0),
+                    },
+                ),
+                _ => (0.0, 0.0),
             };
             a += c * value;
             ax += c * dx;
