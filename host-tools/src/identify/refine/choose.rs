@@ -437,11 +437,18 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             text
         }
         (true, Some(s), Some(r)) => format!(
-            "streaming model kept: the refined one predicts {:.3} % against {:.3} % {over} ({}; {Z_BETTER} needed), and the streaming coefficients lie within {} of its standard errors",
+            "streaming model kept: the refined one predicts {:.3} % against {:.3} % {over} ({}; {Z_BETTER} needed), and {}",
             r.nrmse_percent,
             s.nrmse_percent,
             z_text(paired),
-            disagreement.map_or("no estimate".to_owned(), |d| format!("{d:.1}"))
+            match disagreement {
+                Some(d) if d >= SIGNIFICANT_SE => format!(
+                    "though the streaming coefficients lie up to {d:.1} of its standard errors away, it predicts worse"
+                ),
+                Some(d) =>
+                    format!("the streaming coefficients lie within {d:.1} of its standard errors"),
+                None => "its standard errors could not be estimated".to_owned(),
+            }
         ),
         _ => "not refined: the refinement did not converge".to_owned(),
     };
