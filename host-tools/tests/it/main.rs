@@ -6,6 +6,7 @@ mod bundled;
 mod clean_failures;
 mod cli;
 mod eveh;
+mod failures_cli;
 mod gate;
 mod generate;
 mod libraries;
