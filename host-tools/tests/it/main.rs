@@ -11,6 +11,7 @@ mod gate;
 mod generate;
 mod libraries;
 mod log_cli;
+mod low_rate;
 mod ode;
 mod plot;
 mod quality;
