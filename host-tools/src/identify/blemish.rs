@@ -13,10 +13,10 @@
 //! - an isolated spike is a sample whose distance from the cubic through its four neighbours,
 //!   r = s − (−s₋₂ + 4s₋₁ + 4s₊₁ − s₊₂)/6, is more than [`SPIKE_MADS`] robust standard
 //!   deviations (1.4826 · the median absolute deviation of r over the recording, at least the
-//!   channel's quantisation step), more than [`TAIL_MARGIN`] times the largest |r| the
-//!   channel's own noise is expected to reach (so that heavy-tailed noise, a laser vibrometer's,
-//!   is not taken for spikes; see `Limit::of`), and at least [`SPIKE_DOMINANCE`] times its
-//!   neighbours' r
+//!   channel's quantisation step) — times how much further than a Gaussian's the channel's
+//!   own noise reaches, so that heavy-tailed noise such as a laser vibrometer's is not taken
+//!   for spikes (see `Limit::of`) — and at least [`SPIKE_DOMINANCE`] times the r of the samples
+//!   two either side
 //!   (a spike of height h gives r = h at its sample and −2h/3 at its neighbours; a step gives
 //!   ±h/2 at two samples and is not a spike). A spike whose four neighbours are kept is
 //!   *repaired*: the identifier is given that cubic's value instead (the other channels as
@@ -27,7 +27,7 @@
 //!   sampling rates the identifier needs; its noise is √(34/36) of one sample's.
 //!   The first and last two samples of a stretch (the record's ends, or beside a gap) have no
 //!   two neighbours on each side: they are judged by the one-sided residual from the cubic
-//!   fitted to the samples 2 to 9 away, against that stencil's own limit, so a spike there is
+//!   fitted to the samples 2 to 25 away, against that stencil's own limit, so a spike there is
 //!   found where it is (issue 25), not at its neighbour; such a spike is left out.
 //!
 //! The excitation frequency is estimated from windows within clean stretches only, and the
@@ -449,16 +449,20 @@ pub fn where_text(rows: &[usize]) -> String {
     }
 }
 
-/// How many robust standard deviations the channel's own noise is taken to reach at most,
-/// beyond [`SPIKE_MADS`]: the limit is also at least [`TAIL_MARGIN`] times the largest |r|
-/// the noise is expected to reach in the recording, extrapolated from its 95th and 99th
-/// percentiles (see [`Limit::of`]).
-pub const TAIL_MARGIN: f64 = 2.0;
+/// The Gaussian value of q₉₉/q₉₅ of |r| (2.5758/1.9600), as a power-law exponent:
+/// ln 5 / ln(2.5758/1.9600) ≈ 5.89 (see [`Limit::of`]).
+fn gaussian_alpha() -> f64 {
+    5f64.ln() / (2.5758f64 / 1.9600).ln()
+}
 
 /// Samples of the one-sided cubic fit that judges the first and last two samples of a stretch
-/// (offsets 2 to 9 from the sample, skipping its neighbour so that a spike there does not
-/// move it).
-const EDGE_FIT: usize = 8;
+/// (offsets 2 to 25 from the sample, skipping its neighbour so that a spike there does not
+/// move it). 24 samples give a noise gain of 1.63 (the centred stencil's: 1.39; 8 samples:
+/// 5.3), so a spike at the end is found from 20 noise σ on.
+const EDGE_FIT: usize = 24;
+
+/// At most this many positions measure the one-sided stencil's limit (evenly spread).
+const EDGE_SAMPLE: usize = 100_000;
 
 /// The centre of a residual and the limit of |r − centre| beyond which a sample is a spike.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -469,21 +473,20 @@ struct Limit {
 
 impl Limit {
     /// The limit of one stencil's residuals over a channel: [`SPIKE_MADS`] robust standard
-    /// deviations (1.4826 · MAD, at least `floor`, the quantisation step through the stencil),
-    /// and at least [`TAIL_MARGIN`] times the largest deviation the channel's own noise is
-    /// expected to reach among these `m` residuals.
+    /// deviations σ (1.4826 · MAD, at least `floor`, the quantisation step through the
+    /// stencil), times how much further than a Gaussian's the channel's own noise reaches.
     ///
-    /// That expected largest deviation extrapolates the tail as a power law through the 95th
-    /// and 99th percentiles q₉₅, q₉₉ of |r − centre|: P(|r| > q) ∝ q^(−α), α = ln 5 / ln(q₉₉/q₉₅),
-    /// so the largest of m is q₉₉ (m/100)^(1/α). For Gaussian noise (q₉₉/q₉₅ = 1.31, α ≈ 6) it
-    /// is 6.8 σ at m = 40 000 and 10.5 σ at 400 000, under 12 σ / 2: the limit stays 12 σ up to a
-    /// few 10⁵ samples and grows slowly beyond. For heavy-tailed noise, such as a laser
-    /// vibrometer's (speckle dropouts: BistableX's velocity has q₉₉ = 5–10 σ and single-sample
-    /// excursions up to 140 σ, α ≈ 2, like Student's t with 2–3 degrees of freedom) it is the
-    /// size the noise itself reaches, so a noisy channel is not taken for a spiky one. A spike
-    /// moves five residuals, so the percentiles hold while fewer than one sample in 500 is a
-    /// spike. q₉₅ is taken at least 1.96 σ, its Gaussian value, so that a quantised channel
-    /// whose residuals are mostly zero does not extrapolate from nothing.
+    /// The reach extrapolates the tail as a power law through the 95th and 99th percentiles
+    /// q₉₅, q₉₉ of |r − centre|: P(|r| > q) ∝ q^(−α), α = ln 5 / ln(q₉₉/q₉₅), to the largest of
+    /// 100 such records, q₉₉ m^(1/α) for m residuals. The same extrapolation of Gaussian noise
+    /// (q₉₉ = 2.576 σ, α = 5.89) is the reference: Gaussian noise keeps 12 σ at any length,
+    /// while heavy-tailed noise, such as a laser vibrometer's (speckle dropouts: BistableX's
+    /// velocity has q₉₉ = 5–10 σ, α ≈ 2, and single-sample excursions up to 140 σ, like
+    /// Student's t with 2–3 degrees of freedom), gets a limit beyond what its own excursions
+    /// reach, so a noisy channel is not taken for a spiky one. A spike moves five residuals,
+    /// so the percentiles hold while fewer than one sample in 500 is a spike. q₉₅ is taken at
+    /// least 1.96 σ, its Gaussian value, so that a quantised channel whose residuals are
+    /// mostly zero does not extrapolate from nothing.
     fn of(residuals: &[Option<f64>], floor: f64) -> Option<Self> {
         let mut values: Vec<f64> = residuals
             .iter()
@@ -507,13 +510,14 @@ impl Limit {
         };
         let q95 = quantile(0.95).max(1.96 * sigma);
         let q99 = quantile(0.99);
-        let expected = if q99 > q95 {
+        let reach = if q99 > q95 {
             let alpha = 5f64.ln() / (q99 / q95).ln();
-            q99 * (0.01 * m as f64).max(1.0).powf(1.0 / alpha)
+            q99 * (m as f64).powf(1.0 / alpha)
         } else {
             q99
         };
-        let limit = (SPIKE_MADS * sigma).max(TAIL_MARGIN * expected);
+        let gaussian = 2.5758 * sigma * (m as f64).powf(1.0 / gaussian_alpha());
+        let limit = SPIKE_MADS * sigma * (reach / gaussian).max(1.0);
         limit.is_finite().then_some(Self { centre, limit })
     }
 
@@ -615,7 +619,7 @@ fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
 }
 
 /// The weights of the one-sided stencil: sᵢ predicted by the least-squares cubic through
-/// sᵢ₊₂ … sᵢ₊₉ (index 0 is offset 2); the same weights, mirrored, predict from sᵢ₋₉ … sᵢ₋₂.
+/// sᵢ₊₂ … sᵢ₊₂₅ (index 0 is offset 2); the same weights, mirrored, predict from sᵢ₋₂₅ … sᵢ₋₂.
 fn edge_weights() -> [f64; EDGE_FIT] {
     let mut w = [0.0; EDGE_FIT];
     for (k, wk) in w.iter_mut().enumerate() {
@@ -627,39 +631,47 @@ fn edge_weights() -> [f64; EDGE_FIT] {
     w
 }
 
-/// The samples at offsets 2..=9 from `i` in the direction `step` (+1 forward, −1 backward),
-/// if they are all in the recording, kept and finite, and evenly spaced from `i` on.
-fn edge_span(s: &[f64], scan: &Scan, i: usize, forward: bool) -> Option<Vec<usize>> {
-    let n = s.len();
-    let last = EDGE_FIT + 1;
-    let span: Vec<usize> = if forward {
-        (i + 2 <= n.saturating_sub(last)).then(|| (i + 2..=i + last).collect())?
-    } else {
-        (i >= last).then(|| (i - last..=i - 2).rev().collect())?
-    };
-    let kept = span.iter().all(|&j| !scan.skip[j] && s[j].is_finite());
-    // restart[j]: a gap between j − 1 and j.
-    let even = if forward {
-        (i + 1..=i + last).all(|j| !scan.restart[j])
-    } else {
-        (i - last + 1..=i).all(|j| !scan.restart[j])
-    };
-    (kept && even).then_some(span)
+/// The sample at offset `k` (2 ≤ k ≤ 25) from `i` in the stencil's direction.
+fn edge_at(i: usize, k: usize, forward: bool) -> usize {
+    if forward { i + k } else { i - k }
 }
 
-/// The one-sided residual sᵢ − (the cubic through the samples 2–9 away) of every sample where
-/// that span is usable, forward or backward.
-fn one_sided(s: &[f64], scan: &Scan, forward: bool) -> Vec<Option<f64>> {
-    let w = edge_weights();
-    (0..s.len())
-        .map(|i| {
-            if scan.skip[i] || !s[i].is_finite() {
-                return None;
-            }
-            let span = edge_span(s, scan, i, forward)?;
-            Some(s[i] - span.iter().zip(&w).map(|(&j, wk)| wk * s[j]).sum::<f64>())
+/// Whether the samples at offsets 2..=25 from `i` (ahead, or behind) are all in the
+/// recording, kept and finite, and evenly spaced from `i` on.
+fn edge_usable(s: &[f64], scan: &Scan, i: usize, forward: bool) -> bool {
+    let last = EDGE_FIT + 1;
+    let inside = if forward {
+        i + last < s.len()
+    } else {
+        i >= last
+    };
+    inside
+        && (2..=last).all(|k| {
+            let j = edge_at(i, k, forward);
+            !scan.skip[j] && s[j].is_finite()
         })
-        .collect()
+        // restart[j]: a gap between j − 1 and j.
+        && (1..=last).all(|k| {
+            let j = edge_at(i, k, forward);
+            !scan.restart[if forward { j } else { j + 1 }]
+        })
+}
+
+/// The one-sided residual sᵢ − (the stencil's prediction) at a sample, if usable.
+fn one_sided_at(
+    s: &[f64],
+    scan: &Scan,
+    w: &[f64; EDGE_FIT],
+    i: usize,
+    forward: bool,
+) -> Option<f64> {
+    if scan.skip[i] || !s[i].is_finite() || !edge_usable(s, scan, i, forward) {
+        return None;
+    }
+    let predicted: f64 = (0..EDGE_FIT)
+        .map(|k| w[k] * s[edge_at(i, k + 2, forward)])
+        .sum();
+    Some(s[i] - predicted)
 }
 
 /// The spike rule's threshold on one channel, from a stretch of it: the centre of the cubic
@@ -676,13 +688,13 @@ pub fn spike_limit(s: &[f64], scan: &Scan) -> Option<(f64, f64)> {
 ///
 /// A sample with its four neighbours kept and evenly spaced is judged by the centred cubic
 /// residual; the first and last two samples of a stretch (the record's ends, or beside a gap
-/// or a left-out sample) by the one-sided residual from the cubic fitted to the samples 2 to 9
-/// away on the side that has them, each against that stencil's own limit measured over the
-/// whole channel. That fit leaves out the samples whose centred residual is beyond its limit
-/// (a spike there, and its neighbours), so a spike near the end does not make one at the end.
-/// A spike must exceed its neighbours' residuals, whichever stencil judges them, by
-/// [`SPIKE_DOMINANCE`]: a spike of height h at the second sample gives h there, 2h/3 at the
-/// third and nothing at the first.
+/// or a left-out sample) by the one-sided residual from the cubic fitted to the samples 2 to
+/// 25 away on the side that has them, against that stencil's own limit measured over the
+/// channel. That fit leaves out the samples whose centred residual is beyond its limit (a
+/// spike there, and its neighbours), so a spike near the end does not make one at the end.
+/// A spike must exceed the residuals of the samples two either side, whichever stencil judges
+/// them, by [`SPIKE_DOMINANCE`]: an interior spike of height h gives h there, 2h/3 one away and
+/// h/6 two away; one at the first sample gives h there and h/6 at the third.
 fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
     let n = s.len();
     let q = quantum(s);
@@ -692,10 +704,15 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
     };
     let w = edge_weights();
     let edge_floor = q * (1.0 + w.iter().map(|x| x * x).sum::<f64>()).sqrt();
-    let forward = one_sided(s, scan, true);
-    let backward = one_sided(s, scan, false);
-    let lf = Limit::of(&forward, edge_floor);
-    let lb = Limit::of(&backward, edge_floor);
+    let stride = n.div_ceil(EDGE_SAMPLE).max(1);
+    let measured = |forward: bool| {
+        let sample: Vec<Option<f64>> = (0..n)
+            .step_by(stride)
+            .map(|i| one_sided_at(s, scan, &w, i, forward))
+            .collect();
+        Limit::of(&sample, edge_floor)
+    };
+    let (lf, lb) = (measured(true), measured(false));
     let candidate = |j: usize| r[j].is_some_and(|v| lc.size(v) > lc.limit);
     // The edge samples' residual and limit: forward where the span ahead is usable, else
     // backward; refitted without candidate spikes in the span.
@@ -704,21 +721,22 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
             if r[i].is_some() || scan.skip[i] || !s[i].is_finite() {
                 return None;
             }
-            let (span, limit) = match (edge_span(s, scan, i, true), lf) {
-                (Some(span), Some(l)) => (span, l),
-                _ => (edge_span(s, scan, i, false)?, lb?),
+            let (forward, limit) = match (edge_usable(s, scan, i, true), lf, lb) {
+                (true, Some(l), _) => (true, l),
+                (_, _, Some(l)) if edge_usable(s, scan, i, false) => (false, l),
+                _ => return None,
             };
-            let points: Vec<(f64, f64)> = span
-                .iter()
-                .filter(|&&j| !candidate(j))
-                .map(|&j| (j.abs_diff(i) as f64, s[j]))
+            let points: Vec<(f64, f64)> = (2..=EDGE_FIT + 1)
+                .map(|k| (k, edge_at(i, k, forward)))
+                .filter(|&(_, j)| !candidate(j))
+                .map(|(k, j)| (k as f64, s[j]))
                 .collect();
-            let predicted = if points.len() == EDGE_FIT {
-                span.iter().zip(&w).map(|(&j, wk)| wk * s[j]).sum::<f64>()
+            let value = if points.len() == EDGE_FIT {
+                one_sided_at(s, scan, &w, i, forward)?
             } else {
-                cubic_fit_at(&points, 0.0)?
+                s[i] - cubic_fit_at(&points, 0.0)?
             };
-            Some((s[i] - predicted, limit))
+            Some((value, limit))
         })
         .collect();
     let size = |i: usize| match (r.get(i).copied().flatten(), edge.get(i).copied().flatten()) {
@@ -733,7 +751,10 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
                 (None, Some((v, l))) => l.size(v) > l.limit,
                 (None, None) => false,
             };
-            let neighbours = if i > 0 { size(i - 1) } else { 0.0 }.max(size(i + 1));
+            let neighbours = (i.saturating_sub(2)..=i + 2)
+                .filter(|&j| j != i)
+                .map(size)
+                .fold(0.0, f64::max);
             beyond && size(i) >= SPIKE_DOMINANCE * neighbours
         })
         .collect()

@@ -20,6 +20,7 @@ mod refine_supports;
 mod replay_cli;
 mod replay_link;
 mod replay_resume;
+mod spikes;
 mod standard_errors;
 mod stream;
 mod telemetry_fuzz;
