@@ -20,6 +20,7 @@ pub mod refine;
 pub mod simulate;
 pub mod stream;
 pub mod supports;
+pub mod sweep;
 pub mod terms;
 pub mod track;
 

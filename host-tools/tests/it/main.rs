@@ -23,5 +23,6 @@ mod replay_resume;
 mod spikes;
 mod standard_errors;
 mod stream;
+mod sweep;
 mod telemetry_fuzz;
 mod track;
