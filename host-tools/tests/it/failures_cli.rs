@@ -196,3 +196,138 @@ fn a_closed_pipe_ends_log_identify_and_info_quietly() {
     assert!(first.iter().any(|b| !b.is_ascii_whitespace()), "{first:?}");
     assert_quiet(&["log", log], &out);
 }
+
+/// A recording whose x never moves: `lssi identify` withholds its model (exit 3).
+fn constant(dir: &Path, name: &str) -> String {
+    let path = dir.join(name);
+    let mut text = String::from("t,x\n");
+    for i in 0..4001 {
+        text.push_str(&format!("{},0.003\n", f64::from(i) / 1000.0));
+    }
+    std::fs::write(&path, text).unwrap();
+    arg(&path).to_owned()
+}
+
+const FIGURES: [&str; 5] = [
+    "model",
+    "screening",
+    "k-neighbours",
+    "coefficients",
+    "phase",
+];
+
+fn figures_of(out: &Path, stem: &str) -> usize {
+    FIGURES
+        .iter()
+        .flat_map(|f| ["png", "svg"].map(|ext| out.join(format!("{stem}-{f}.{ext}"))))
+        .filter(|p| std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 1000))
+        .count()
+}
+
+#[test]
+fn plot_draws_every_recording_named_or_names_each_that_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", 4);
+    let b = generate(dir.path(), "b.csv", 5);
+    let flat = constant(dir.path(), "flat.csv");
+    let missing = dir.path().join("missing.csv");
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let out = dir.path().join("figures");
+    let run = lssi(&[
+        "plot",
+        &a,
+        arg(&missing),
+        &b,
+        &flat,
+        arg(&empty),
+        "--no-refine",
+        "--out",
+        arg(&out),
+    ]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(2), "{err}");
+    // Both good recordings drawn, every figure, and their paths printed.
+    let printed = String::from_utf8_lossy(&run.stdout);
+    for stem in ["a", "b"] {
+        assert_eq!(figures_of(&out, stem), 10, "{stem}: {err}");
+        assert!(printed.contains(&format!("{stem}-model.png")), "{printed}");
+    }
+    // The withheld model not drawn at all, and said so.
+    assert_eq!(figures_of(&out, "flat"), 0);
+    assert!(err.contains(&format!("{flat}: x is constant")), "{err}");
+    assert!(err.contains("No figure of it was drawn"), "{err}");
+    assert!(err.contains(&format!("{}: cannot read the file", missing.display())));
+    assert!(err.contains(&format!("{}: the folder holds no .csv", empty.display())));
+    let last = err.lines().last().unwrap();
+    assert!(
+        last.starts_with("lssi: 3 of 5 recordings could not be plotted: ")
+            && [arg(&missing), &flat, arg(&empty)]
+                .iter()
+                .all(|f| last.contains(f)),
+        "{last}"
+    );
+
+    // Good and withheld only: exit 3, the good one still drawn.
+    let out3 = dir.path().join("three");
+    let run = lssi(&["plot", &flat, &a, "--no-refine", "--out", arg(&out3)]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert_eq!(figures_of(&out3, "a"), 10);
+    assert_eq!(figures_of(&out3, "flat"), 0);
+    // The withheld one alone: exit 3, nothing written.
+    let run = lssi(&["plot", &flat, "--out", arg(&out3)]);
+    assert_eq!(run.status.code(), Some(3));
+    assert!(run.stdout.is_empty());
+
+    // Two recordings of one name would overwrite each other's figures: refused up front.
+    let other = dir.path().join("other");
+    std::fs::create_dir(&other).unwrap();
+    std::fs::copy(&a, other.join("a.csv")).unwrap();
+    let out4 = dir.path().join("four");
+    let run = lssi(&["plot", &a, arg(&other.join("a.csv")), "--out", arg(&out4)]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        stderr(&run).contains("have the same name"),
+        "{}",
+        stderr(&run)
+    );
+    assert!(!out4.exists());
+
+    // What a withheld model gets is in the help.
+    let help = lssi(&["plot", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("withholds") && help.contains("not drawn at all"),
+        "{help}"
+    );
+}
+
+#[test]
+fn a_figure_that_cannot_be_written_is_an_error_naming_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", 6);
+    // A folder where the model figure should go (a read-only folder does not stop root).
+    let out = dir.path().join("figures");
+    std::fs::create_dir_all(out.join("a-model.png")).unwrap();
+    let run = lssi(&["plot", &a, "--no-refine", "--out", arg(&out)]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with(&format!(
+            "lssi: {}: cannot write the file: ",
+            out.join("a-model.png").display()
+        )),
+        "{err}"
+    );
+    // The figures that could be written were.
+    assert_eq!(figures_of(&out, "a"), 8, "{err}");
+    // An output folder that cannot be made (its parent is a file).
+    let below_a_file = Path::new(&a).join("figures");
+    let run = lssi(&["plot", &a, "--no-refine", "--out", arg(&below_a_file)]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(
+        stderr(&run).contains(&format!("{}: cannot write", below_a_file.display())),
+        "{}",
+        stderr(&run)
+    );
+}
