@@ -1,0 +1,702 @@
+//! The streaming identifier of a system of equations: a harvester's mechanical equation and
+//! its electrical ones, from the channels a lab records.
+//!
+//! A recording's channels are states. The displacement x (with its velocity v = x',
+//! measured or differentiated) gets a second-order equation x'' = f, each electrical
+//! channel (the voltage V across the load, or the current i) a first-order one, V' = f.
+//! Every equation is sparse over one shared library of the states
+//! ([`StateLibrary`]: 1, x, v, V, x², x·V, v·V, …, sin/cos kΩt, u) and is selected on its
+//! own (its own threshold sweep and held-out MES, [`crate::screen`]'s, unchanged). A
+//! piezoelectric harvester's standard form comes out as
+//!
+//! ```text
+//! x'' = a x + b x³ + c v + χ V + F cos Ωt      V' = −λ V − κ v
+//! ```
+//!
+//! # Design: several right-hand sides over one square-root factor
+//!
+//! The equations share the row θ(states, t, u); only their targets (x̂'', V̂', …) differ. So
+//! the rows go into one square-root factor R with one z and ρ² per equation
+//! ([`MultiFactor`]): the Givens rotations are made once per row and applied to R once,
+//! each target costs a rotation of its z. Per regression row with n columns and E
+//! equations: ≈ 3.5·n² + 7·E·n flops and n square roots, against E·(3.5·n² + 7·n) for one
+//! factor per equation: with n = 16, E = 2, about 1 130 flops instead of 2 020 (−44 %), and
+//! the held-out halves A and B and the block in progress take 3·(P² + E·P + E + 1) numbers
+//! instead of 3·E·(P² + P + 2) (3.5 KB instead of 6.6 KB with f32, P = 16). At a screening
+//! each equation's (R, z_k, ρ²_k) is copied out into an ordinary [`Factor`] (the factor its
+//! own single-target regression would have built, to rounding) and swept as one equation is.
+//!
+//! # The front end
+//!
+//! One ring buffer of `W` samples per channel and the one set of folded Savitzky–Golay taps
+//! of the single-equation path ([`FoldedTaps`]): x̂, x̂' and x̂'' from x (or v̂ and v̂' from a
+//! measured v), and V̂ and V̂' from V with the value and first-derivative taps, so that every
+//! state and target lags the newest sample by the same half window. Per row, the taps cost
+//! ⌈N/2⌉ multiply-adds per estimate: five estimates (x̂, x̂', x̂'', V̂, V̂') with N = 255 are
+//! 640 multiply-adds. Rows come every `row_stride` samples.
+//!
+//! What the single-equation path has and this one has not (yet): the k-neighbour smoothing
+//! of the states (`Config::smoothing` is ignored), the search of the sensor origins
+//! (`Config::offsets` is ignored: a constant term takes a static offset), the excitation
+//! gate, test-function rows (`Config::test_rows` must be 0) and the noise correction.
+//!
+//! ```
+//! use lssi_core::identifier::system::{SystemConfig, SystemIdentifier, SystemSample, Target};
+//! use lssi_core::library::{Electrical, StateTerm};
+//! use lssi_core::Config;
+//! let config = SystemConfig {
+//!     base: Config { sample_period: 0.02, window: 63, omega: 1.0, screening_period: 50_000,
+//!                    ..Config::default() },
+//!     electrical: [Some(Electrical::Voltage), None],
+//!     coupling_order: 1,
+//! };
+//! let mut id: Box<SystemIdentifier<f64, 64, 16>> = Box::new(SystemIdentifier::new(config).unwrap());
+//! // x'' = -x - 0.1 v + 0.2 V + cos t, V' = -V - 0.5 v, by semi-implicit Euler.
+//! let (mut x, mut v, mut e, dt) = (0.0f64, 0.0f64, 0.0f64, 0.001f64);
+//! for i in 0..1_000_000u32 {
+//!     let t = f64::from(i) * dt;
+//!     if i % 20 == 0 {
+//!         id.push(&SystemSample { t, x, v: None, u: None, electrical: &[e] }).unwrap();
+//!     }
+//!     v += dt * (-x - 0.1 * v + 0.2 * e + t.cos());
+//!     x += dt * v;
+//!     e += dt * (-e - 0.5 * v);
+//! }
+//! id.screen();
+//! let model = id.model().unwrap();
+//! let kappa = model.coefficient(Target::Rate(Electrical::Voltage), StateTerm::Monomial([0, 1, 0, 0]));
+//! assert!((kappa.unwrap() + 0.5).abs() < 0.01, "{kappa:?}");
+//! ```
+
+use super::intake::{Counters, Rejection, Schedule, below};
+use super::phasor::Phasor;
+use crate::config::{Config, ConfigError};
+use crate::derivative::{Design, FoldedTaps};
+use crate::factor::{Factor, MultiFactor};
+use crate::library::{
+    Electrical, MAX_ELECTRICAL, STATES, StateLibrary, StateLibraryConfig, StateLibraryError,
+};
+use crate::real::Real;
+use crate::screen;
+use core::fmt;
+use heapless::HistoryBuf;
+
+mod model;
+mod weak;
+pub use model::{Equation, SystemModel, Target};
+use weak::SystemTestRows;
+
+/// Test-function sums per block of A or B (as the single-equation path's).
+const TEST_BLOCK: u64 = super::halves::TEST_BLOCK;
+
+/// Regression rows kept before the column scales are known (as the single-equation path).
+const WARMUP_ROWS: usize = super::WARMUP_ROWS;
+
+/// A system's configuration: the single-equation one for what they share, and the
+/// electrical channels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SystemConfig {
+    /// Sample period, derivative window and degree, Ω, the measured v and u
+    /// (`channels`), memory, screening period, thresholds, row stride, parsimony, max_abs;
+    /// `library` is the mechanical part of the shared library. `smoothing` and `offsets`
+    /// do not apply; `test_rows` must be 0 and `noise_correction` off.
+    pub base: Config,
+    /// The electrical channels a sample carries, in its order: `Some` first, each kind once.
+    pub electrical: [Option<Electrical>; MAX_ELECTRICAL],
+    /// The highest total degree of a coupling term (1: V; 2: also x·V, v·V, V²).
+    pub coupling_order: u8,
+}
+
+impl SystemConfig {
+    /// The shared library's configuration.
+    pub fn library(&self) -> StateLibraryConfig {
+        StateLibraryConfig {
+            mechanical: self.base.library,
+            electrical: self.electrical,
+            coupling_order: self.coupling_order,
+        }
+    }
+
+    /// Equations: the mechanical one and one per electrical channel.
+    pub fn equations(&self) -> usize {
+        1 + self.library().electrical_count()
+    }
+
+    /// Ring buffers the samples need: x, v and u when measured, the electrical channels.
+    pub fn rings(&self) -> usize {
+        self.base.channels.count() + self.library().electrical_count()
+    }
+
+    /// Checks every field against the capacities `W` (window), `P` (terms), `E` (equations)
+    /// and `C` (ring buffers).
+    pub fn validate<const W: usize, const P: usize, const E: usize, const C: usize>(
+        &self,
+    ) -> Result<(), SystemConfigError> {
+        // The mechanical library alone may be larger than the shared one's capacity allows;
+        // the shared one is checked below.
+        let mut base = self.base;
+        base.library.poly_order = base.library.poly_order.clamp(1, 9);
+        match base.validate::<W, 32, 3>() {
+            Ok(()) => {}
+            Err(ConfigError::Library(_)) => {}
+            Err(e) => return Err(SystemConfigError::Config(e)),
+        }
+        if self.base.noise_correction {
+            return Err(SystemConfigError::NoiseCorrection);
+        }
+        StateLibrary::<P>::new(&self.library())?;
+        if self.equations() > E {
+            return Err(SystemConfigError::Equations {
+                equations: self.equations(),
+                capacity: E,
+            });
+        }
+        if self.rings() > C {
+            return Err(SystemConfigError::Config(ConfigError::Channels {
+                channels: self.rings(),
+                capacity: C,
+            }));
+        }
+        Ok(())
+    }
+}
+
+/// Why a system's configuration is refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SystemConfigError {
+    /// A field shared with the single-equation configuration is out of range.
+    Config(ConfigError),
+    /// The shared library cannot be built.
+    Library(StateLibraryError),
+    /// More equations than the identifier's capacity `E`.
+    Equations {
+        /// Equations the configuration has (1 + electrical channels).
+        equations: usize,
+        /// Equations the identifier was built for.
+        capacity: usize,
+    },
+    /// `noise_correction` is on (the system path has none).
+    NoiseCorrection,
+}
+
+impl fmt::Display for SystemConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SystemConfigError::Config(e) => fmt::Display::fmt(e, f),
+            SystemConfigError::Library(e) => fmt::Display::fmt(e, f),
+            SystemConfigError::Equations {
+                equations,
+                capacity,
+            } => write!(
+                f,
+                "the system has {equations} equations, but this identifier was built for {capacity}"
+            ),
+            SystemConfigError::NoiseCorrection => {
+                f.write_str("noise_correction is not available for a system of equations")
+            }
+        }
+    }
+}
+
+impl core::error::Error for SystemConfigError {}
+
+impl From<StateLibraryError> for SystemConfigError {
+    fn from(e: StateLibraryError) -> Self {
+        SystemConfigError::Library(e)
+    }
+}
+
+/// One measurement of a system's channels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SystemSample<'a, T> {
+    /// Time, seconds.
+    pub t: f64,
+    /// Displacement.
+    pub x: T,
+    /// Measured velocity, when the configuration says there is one.
+    pub v: Option<T>,
+    /// Measured excitation, when the configuration says there is one.
+    pub u: Option<T>,
+    /// The electrical channels, one value each, in the configuration's order.
+    pub electrical: &'a [T],
+}
+
+/// A regression row before the library: the states at the row's time, the input, the
+/// targets (x̂'', then each electrical channel's derivative) and the time.
+#[derive(Clone, Copy, Debug)]
+struct Row<T, const E: usize> {
+    states: [T; STATES],
+    u: T,
+    y: [T; E],
+    t: f64,
+}
+
+/// The warm-up rows, then the halves A and B (one memory: they never coexist).
+#[derive(Clone)]
+enum Store<T, const P: usize, const E: usize> {
+    Warmup(heapless::Vec<Row<T, E>, WARMUP_ROWS>),
+    Halves([MultiFactor<T, P, E>; 2]),
+}
+
+/// The streaming identifier of a system: `W` samples of window capacity, `P` terms of the
+/// shared library, `E` equations (the mechanical one and up to `E − 1` electrical ones),
+/// `C` ring buffers (x, v and u when measured, the electrical channels).
+///
+/// `SystemIdentifier<f32, 256, 16, 2, 2>` (x and V, 16 terms) takes 8.9 KiB; see
+/// the module's documentation for the design and its cost.
+pub struct SystemIdentifier<
+    T: Real,
+    const W: usize,
+    const P: usize,
+    const E: usize = 2,
+    const C: usize = 2,
+> {
+    config: SystemConfig,
+    library: StateLibrary<P>,
+    taps: FoldedTaps<T, W>,
+    rings: [HistoryBuf<T, W>; C],
+    /// Where v, u and the first electrical channel are (each meaningful when present).
+    v_ring: usize,
+    u_ring: usize,
+    e_ring: usize,
+    electrical: usize,
+    max_abs_sure: T,
+    too_early: f64,
+    gap_after: f64,
+    last_t: Option<f64>,
+    schedule: Schedule,
+    phasor: Phasor<T>,
+    /// 1 / the column scales, and the scales of the columns and targets.
+    inverse_scales: [T; P],
+    scales: [T; P],
+    y_scales: [T; E],
+    store: Store<T, P, E>,
+    /// The rows as they are gather here, a block at a time (`test_rows` 0).
+    block: MultiFactor<T, P, E>,
+    /// The test-function sums (`test_rows` > 0), each straight into A or B.
+    sums: SystemTestRows<T, P, E>,
+    regression_rows: u64,
+    block_len: u64,
+    sqrt_lambda: T,
+    sqrt_lambda_blocks: T,
+    counters: Counters,
+    model: Option<SystemModel<T, P, E>>,
+}
+
+impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
+    SystemIdentifier<T, W, P, E, C>
+{
+    /// Builds an identifier, checking the configuration once.
+    pub fn new(config: SystemConfig) -> Result<Self, SystemConfigError> {
+        config.validate::<W, P, E, C>()?;
+        let library = StateLibrary::new(&config.library())?;
+        let c = &config.base;
+        let design = Design::new(
+            c.window,
+            usize::from(c.derivative_degree),
+            c.sample_period,
+            W,
+        )
+        .map_err(|_| {
+            SystemConfigError::Config(ConfigError::Window {
+                window: c.window,
+                min: usize::from(c.derivative_degree) + 3,
+                max: W,
+            })
+        })?;
+        let mut taps = FoldedTaps::empty();
+        taps.design(&design, |_| {});
+        let n = library.len();
+        let electrical = config.library().electrical_count();
+        let equations = 1 + electrical;
+        let v_ring = 1;
+        let u_ring = v_ring + usize::from(c.channels.velocity);
+        let e_ring = u_ring + usize::from(c.channels.input);
+        let stride = usize::from(c.row_stride);
+        let row_period = c.sample_period * f64::from(c.row_stride);
+        let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
+        let sqrt_lambda_row = libm::sqrt(lambda);
+        let sums = SystemTestRows::new(c.test_rows);
+        // λ and the blocks count in rows, or in sums (one every L/4 rows); A's content at a
+        // merge of a block of rows is two blocks old, at the start of a block of sums one.
+        let (block_len, sqrt_lambda, blocks_old) = if sums.on() {
+            let quarter = f64::from(c.test_rows / 4);
+            (TEST_BLOCK, power(sqrt_lambda_row, quarter), TEST_BLOCK as f64)
+        } else {
+            let len = (2 * c.window / stride).max(16) as u64;
+            (len, sqrt_lambda_row, 2.0 * len as f64)
+        };
+        Ok(Self {
+            config,
+            library,
+            taps,
+            rings: [const { HistoryBuf::new() }; C],
+            v_ring,
+            u_ring,
+            e_ring,
+            electrical,
+            max_abs_sure: T::from_f64(c.max_abs * (1.0 - 1e-6)),
+            too_early: 0.5 * c.sample_period,
+            gap_after: 1.5 * c.sample_period,
+            last_t: None,
+            schedule: Schedule::new(c),
+            phasor: Phasor::new(c.omega, row_period),
+            inverse_scales: [T::ONE; P],
+            scales: [T::ONE; P],
+            y_scales: [T::ONE; E],
+            store: Store::Warmup(heapless::Vec::new()),
+            block: MultiFactor::new(n, equations),
+            sums,
+            regression_rows: 0,
+            block_len,
+            sqrt_lambda: T::from_f64(sqrt_lambda),
+            sqrt_lambda_blocks: T::from_f64(power(sqrt_lambda, blocks_old)),
+            counters: Counters::default(),
+            model: None,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SystemConfig {
+        &self.config
+    }
+
+    /// The shared library.
+    pub fn library(&self) -> &StateLibrary<P> {
+        &self.library
+    }
+
+    /// What happened to the samples so far.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// The latest model, once a screening has run.
+    pub fn model(&self) -> Option<&SystemModel<T, P, E>> {
+        self.model.as_ref()
+    }
+
+    /// Samples between a sample arriving and its regression row (the fixed lag).
+    pub fn lag_samples(&self) -> usize {
+        (self.config.base.window - 1) / 2
+    }
+
+    /// Why `s` cannot be fed in, if it cannot.
+    fn check(&self, s: &SystemSample<'_, T>) -> Result<(), Rejection> {
+        let channels = self.config.base.channels;
+        if s.v.is_some() != channels.velocity
+            || s.u.is_some() != channels.input
+            || s.electrical.len() != self.electrical
+        {
+            return Err(Rejection::Channels);
+        }
+        let mut values = [Some(s.x), s.v, s.u]
+            .into_iter()
+            .flatten()
+            .chain(s.electrical.iter().copied());
+        if !s.t.is_finite() || values.clone().any(|v| !v.is_finite()) {
+            return Err(Rejection::NonFinite);
+        }
+        let limit = self.config.base.max_abs;
+        if values.any(|v| !(v.abs() < self.max_abs_sure) && v.abs().to_f64() > limit) {
+            return Err(Rejection::OutOfRange);
+        }
+        if self
+            .last_t
+            .is_some_and(|last| below(s.t - last, self.too_early))
+        {
+            return Err(Rejection::OutOfOrder);
+        }
+        Ok(())
+    }
+
+    /// Feeds one sample. Returns `Ok(true)` when a screening just ran (a new model is in
+    /// [`SystemIdentifier::model`]), `Ok(false)` otherwise, and `Err` (counted) for a sample
+    /// that was not fed in.
+    pub fn push(&mut self, sample: &SystemSample<'_, T>) -> Result<bool, Rejection> {
+        if let Err(r) = self.check(sample) {
+            self.counters.reject(r);
+            return Err(r);
+        }
+        if let Some(last) = self.last_t
+            && below(self.gap_after, sample.t - last)
+        {
+            for ring in self.rings.iter_mut() {
+                ring.clear();
+            }
+            self.schedule.restart_rows();
+            self.counters.gaps += 1;
+        }
+        self.last_t = Some(sample.t);
+        self.counters.accepted += 1;
+        self.rings[0].write(sample.x);
+        if let Some(v) = sample.v {
+            self.rings[self.v_ring].write(v);
+        }
+        if let Some(u) = sample.u {
+            self.rings[self.u_ring].write(u);
+        }
+        for (k, &e) in sample.electrical.iter().enumerate() {
+            self.rings[self.e_ring + k].write(e);
+        }
+        let window = self.config.base.window;
+        if self.rings[0].len() >= window && self.schedule.row_due(self.config.base.row_stride) {
+            self.row(sample.t);
+        }
+        if !self
+            .schedule
+            .screening_due(self.config.base.screening_period)
+        {
+            return Ok(false);
+        }
+        Ok(self.screen())
+    }
+
+    /// The states, input and targets at the centre of the (full) window.
+    fn estimate(&self, t: f64) -> Row<T, E> {
+        let taps = &self.taps;
+        let apply = |ring: usize, order: usize| {
+            let (a, b) = self.rings[ring].as_slices();
+            taps.apply(order, a, b)
+        };
+        let channels = self.config.base.channels;
+        let x = apply(0, 0);
+        let (v, acceleration) = if channels.velocity {
+            (apply(self.v_ring, 0), apply(self.v_ring, 1))
+        } else {
+            (apply(0, 1), apply(0, 2))
+        };
+        let u = if channels.input {
+            apply(self.u_ring, 0)
+        } else {
+            T::ZERO
+        };
+        let mut states = [T::ZERO; STATES];
+        states[0] = x;
+        states[1] = v;
+        let mut y = [T::ZERO; E];
+        y[0] = acceleration;
+        for k in 0..self.electrical.min(MAX_ELECTRICAL).min(E - 1) {
+            states[2 + k] = apply(self.e_ring + k, 0);
+            y[1 + k] = apply(self.e_ring + k, 1);
+        }
+        Row { states, u, y, t }
+    }
+
+    /// The regression row whose centre lies half a window behind `t_newest`.
+    fn row(&mut self, t_newest: f64) {
+        let row = self.estimate(t_newest - self.schedule.row_lag);
+        if let Store::Warmup(rows) = &mut self.store {
+            let _ = rows.push(row);
+            if rows.len() < WARMUP_ROWS {
+                return;
+            }
+            let rows = core::mem::take(rows);
+            self.set_scales(&rows);
+            let n = self.library.len();
+            let equations = 1 + self.electrical;
+            self.store = Store::Halves([
+                MultiFactor::new(n, equations),
+                MultiFactor::new(n, equations),
+            ]);
+            for r in rows.iter() {
+                self.fold(r);
+            }
+            return;
+        }
+        self.fold(&row);
+    }
+
+    /// The column and target scales from the warm-up rows' RMS values.
+    fn set_scales(&mut self, rows: &[Row<T, E>]) {
+        let count = T::from_usize(rows.len().max(1));
+        let rms = |f: &dyn Fn(&Row<T, E>) -> T| {
+            let mut s = T::ZERO;
+            for r in rows {
+                let v = f(r);
+                s += v * v;
+            }
+            let r = (s / count).sqrt();
+            if r > T::ZERO && r.is_finite() {
+                r
+            } else {
+                T::ONE
+            }
+        };
+        let mut states = [T::ONE; STATES];
+        for (i, s) in states.iter_mut().enumerate() {
+            *s = rms(&|r| r.states[i]);
+        }
+        let u = rms(&|r| r.u);
+        for k in 0..E {
+            self.y_scales[k] = rms(&|r| r.y[k]);
+        }
+        self.library.scales(&states, u, &mut self.scales);
+        for (inv, s) in self.inverse_scales.iter_mut().zip(self.scales) {
+            *inv = T::ONE / s;
+        }
+    }
+
+    /// A row through the library into the block in progress; a full block goes to A or B.
+    fn fold(&mut self, r: &Row<T, E>) {
+        if self.config.base.library.harmonics > 0 {
+            self.phasor.turn_to(r.t, self.config.base.omega, false);
+        }
+        let mut theta = [T::ZERO; P];
+        self.library.evaluate(
+            &r.states,
+            self.phasor.sin_cos(),
+            r.u,
+            &self.inverse_scales,
+            &mut theta,
+        );
+        let mut y = [T::ZERO; E];
+        for ((y, r), s) in y.iter_mut().zip(r.y).zip(self.y_scales) {
+            *y = r / s;
+        }
+        self.counters.rows += 1;
+        let n = self.library.len();
+        if self.sums.on() {
+            let Self {
+                sums,
+                store,
+                regression_rows,
+                block_len,
+                sqrt_lambda,
+                sqrt_lambda_blocks,
+                ..
+            } = self;
+            let Store::Halves(halves) = store else {
+                return;
+            };
+            sums.push(&theta, &y, n, |sum, targets| {
+                // Blocks of TEST_BLOCK sums alternate between A and B.
+                let to_a = (*regression_rows / *block_len).is_multiple_of(2);
+                let half = &mut halves[usize::from(!to_a)];
+                if regression_rows.is_multiple_of(*block_len) {
+                    half.forget(*sqrt_lambda_blocks);
+                }
+                half.update(sum, targets, *sqrt_lambda);
+                *regression_rows += 1;
+            });
+            return;
+        }
+        self.block.update(&theta, &y, self.sqrt_lambda);
+        self.regression_rows += 1;
+        if self.regression_rows.is_multiple_of(self.block_len)
+            && let Store::Halves(halves) = &mut self.store
+        {
+            // The block's last row decides: even blocks go to A, odd ones to B.
+            let to_a = ((self.regression_rows - 1) / self.block_len).is_multiple_of(2);
+            let half = &mut halves[usize::from(!to_a)];
+            half.forget(self.sqrt_lambda_blocks);
+            half.merge(&self.block);
+            self.block.clear();
+        }
+    }
+
+    /// The weights of A and B with the block in progress.
+    fn weights(&self) -> (T, T) {
+        let Store::Halves([a, b]) = &self.store else {
+            return (T::ZERO, T::ZERO);
+        };
+        let (mut wa, mut wb) = (a.weight(), b.weight());
+        if (self.regression_rows / self.block_len).is_multiple_of(2) {
+            wa += self.block.weight();
+        } else {
+            wb += self.block.weight();
+        }
+        (wa, wb)
+    }
+
+    /// Whether a screening can run: enough rows (twice the terms) in both halves.
+    pub fn can_screen(&self) -> bool {
+        let enough = T::from_usize(2 * self.library.len());
+        let (wa, wb) = self.weights();
+        wa >= enough && wb >= enough
+    }
+
+    /// Runs a screening now (it also runs by itself every `screening_period` samples): each
+    /// equation's threshold sweep and MES on its own factors. Returns whether a model came
+    /// out (it needs enough rows in both halves). Changes nothing but the model.
+    pub fn screen(&mut self) -> bool {
+        if !self.can_screen() {
+            return false;
+        }
+        self.counters.screenings += 1;
+        let Store::Halves([a_all, b_all]) = &self.store else {
+            return false;
+        };
+        let n = self.library.len();
+        let equations = 1 + self.electrical;
+        let to_a = (self.regression_rows / self.block_len).is_multiple_of(2);
+        let mut model = SystemModel {
+            terms: heapless::Vec::new(),
+            electrical: self.config.electrical,
+            equations: heapless::Vec::new(),
+            omega: self.config.base.omega,
+            samples: self.counters.accepted,
+            rejected: self.counters.rejected(),
+            rows: self.counters.rows,
+        };
+        for &t in self.library.terms() {
+            let _ = model.terms.push(t);
+        }
+        let mut a = Factor::new(n);
+        let mut b = Factor::new(n);
+        let mut all = Factor::new(n);
+        let mut work = [[T::ZERO; P]; P];
+        let mut sweep = screen::Sweep::new();
+        let grid = usize::from(self.config.base.thresholds);
+        let parsimony = T::from_f64(self.config.base.parsimony);
+        for k in 0..equations.min(E) {
+            a_all.equation(k, &mut a);
+            b_all.equation(k, &mut b);
+            // The block in progress belongs to the half its next row goes to.
+            if self.block.weight() > T::ZERO {
+                self.block
+                    .merge_equation_into(k, if to_a { &mut a } else { &mut b });
+            }
+            all.copy_from(&a);
+            all.merge(&b);
+            screen::sweep(a.view(), b.view(), &all, &mut work, grid, parsimony, &mut sweep);
+            let y_scale = self.y_scales[k];
+            let mut coefficients = [T::ZERO; P];
+            for j in 0..n {
+                coefficients[j] = sweep.coefficients[j] * y_scale / self.scales[j];
+            }
+            let mut solutions = heapless::Vec::new();
+            for s in sweep.solutions.iter() {
+                let _ = solutions.push(crate::model::Solution {
+                    mean_error: s.mean_error * y_scale * y_scale,
+                    ..*s
+                });
+            }
+            let target = if k == 0 {
+                Target::Acceleration
+            } else {
+                Target::Rate(self.config.electrical[k - 1].unwrap_or(Electrical::Voltage))
+            };
+            let _ = model.equations.push(Equation {
+                target,
+                coefficients,
+                solutions,
+                selected: sweep.selected,
+            });
+        }
+        self.model = Some(model);
+        true
+    }
+}
+
+/// x^n for the forgetting factors (0 < x ≤ 1), as exp(n·ln x) (as the single-equation
+/// path's, without `libm::pow`).
+fn power(x: f64, n: f64) -> f64 {
+    libm::exp(n * libm::log(x))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,360 @@
+//! A simulated piezoelectric harvester (Erturk–Inman form, mono- and bistable), integrated
+//! here by RK4, identified as a system: both equations, every true term, none spurious.
+
+use super::*;
+use crate::library::{LibraryConfig, PolyFamily};
+use lssi_testkit::Noise;
+use std::string::{String, ToString};
+use std::vec::Vec;
+
+/// x'' = k1 x + k3 x³ + c v + χ V + F cos Ωt,  V' = −λ V − κ v.
+#[derive(Clone, Copy, Debug)]
+struct Piezo {
+    k1: f64,
+    k3: f64,
+    c: f64,
+    chi: f64,
+    lambda: f64,
+    kappa: f64,
+    force: f64,
+    omega: f64,
+    /// Forcing by a measured base acceleration u (a multisine) instead of F cos Ωt.
+    input: bool,
+}
+
+/// The multisine base acceleration: five incommensurate tones about the resonances, unit
+/// amplitude each.
+fn multisine(t: f64) -> f64 {
+    const TONES: [(f64, f64); 5] = [(0.43, 0.3), (0.71, 2.1), (0.97, 4.0), (1.29, 1.2), (1.63, 5.3)];
+    TONES.iter().map(|(w, phi)| (w * t + phi).cos()).sum::<f64>() / 2.0
+}
+
+impl Piezo {
+    fn monostable() -> Self {
+        Self {
+            k1: -1.0,
+            k3: -0.5,
+            c: -0.04,
+            chi: 0.1,
+            lambda: 1.0,
+            kappa: 0.5,
+            force: 0.4,
+            omega: 0.8,
+            input: false,
+        }
+    }
+
+    fn bistable() -> Self {
+        Self {
+            k1: 0.5,
+            k3: -0.5,
+            c: -0.04,
+            chi: 0.1,
+            lambda: 1.0,
+            kappa: 0.5,
+            force: 0.3,
+            omega: 0.8,
+            input: false,
+        }
+    }
+
+    fn with_input(self, force: f64) -> Self {
+        Self { input: true, force, ..self }
+    }
+
+    fn forcing(&self, t: f64) -> f64 {
+        if self.input {
+            self.force * multisine(t)
+        } else {
+            self.force * (self.omega * t).cos()
+        }
+    }
+
+    fn derivative(&self, t: f64, s: [f64; 3]) -> [f64; 3] {
+        let [x, v, e] = s;
+        [
+            v,
+            self.k1 * x
+                + self.k3 * x * x * x
+                + self.c * v
+                + self.chi * e
+                + self.forcing(t),
+            -self.lambda * e - self.kappa * v,
+        ]
+    }
+
+    /// `n` samples `dt` apart of (t, x, V, u), after a second of transient is dropped; RK4
+    /// with `substeps` steps per sample.
+    fn simulate(&self, n: usize, dt: f64, substeps: usize, start: [f64; 3]) -> Vec<[f64; 4]> {
+        let h = dt / substeps as f64;
+        let mut s = start;
+        let mut t = 0.0;
+        let mut out = Vec::with_capacity(n);
+        let skip = (100.0 / dt) as usize;
+        for i in 0..n + skip {
+            if i >= skip {
+                let t = i as f64 * dt;
+                out.push([t, s[0], s[2], multisine(t)]);
+            }
+            for _ in 0..substeps {
+                let add = |s: [f64; 3], k: [f64; 3], f: f64| {
+                    [s[0] + f * k[0], s[1] + f * k[1], s[2] + f * k[2]]
+                };
+                let k1 = self.derivative(t, s);
+                let k2 = self.derivative(t + h / 2.0, add(s, k1, h / 2.0));
+                let k3 = self.derivative(t + h / 2.0, add(s, k2, h / 2.0));
+                let k4 = self.derivative(t + h, add(s, k3, h));
+                for j in 0..3 {
+                    s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+                }
+                t += h;
+            }
+        }
+        out
+    }
+
+    /// The true terms of each equation by name.
+    fn truth(&self) -> [Vec<(&'static str, f64)>; 2] {
+        let forcing = if self.input { "u" } else { "cos(0.8t)" };
+        [
+            vec![
+                ("x", self.k1),
+                ("v", self.c),
+                ("V", self.chi),
+                ("x^3", self.k3),
+                (forcing, self.force),
+            ],
+            vec![("v", -self.kappa), ("V", -self.lambda)],
+        ]
+    }
+}
+
+/// 100 samples a second: about 600 per period of the linear resonance (ω = 1 rad/s).
+const DT: f64 = 0.01;
+/// 1 200 s of record, 190 periods.
+const SAMPLES: usize = 120_000;
+
+fn config(window: usize, input: bool) -> SystemConfig {
+    SystemConfig {
+        base: Config {
+            sample_period: DT,
+            window,
+            derivative_degree: 5,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: if input { 0 } else { 1 },
+                input,
+            },
+            channels: crate::config::Channels {
+                velocity: false,
+                input,
+            },
+            omega: 0.8,
+            screening_period: u32::MAX,
+            ..Config::default()
+        },
+        electrical: [Some(Electrical::Voltage), None],
+        coupling_order: 2,
+    }
+}
+
+/// The record with `noise` (relative RMS) added to x and V.
+fn record(p: &Piezo, n: usize, noise: f64, seed: u64) -> Vec<[f64; 4]> {
+    let mut points = p.simulate(n, DT, 10, [0.1, 0.0, 0.0]);
+    if noise > 0.0 {
+        let mut rng = Noise::new(seed);
+        let mut x: Vec<f64> = points.iter().map(|q| q[1]).collect();
+        let mut e: Vec<f64> = points.iter().map(|q| q[2]).collect();
+        rng.add_relative(&mut x, noise);
+        rng.add_relative(&mut e, noise);
+        for ((q, x), e) in points.iter_mut().zip(x).zip(e) {
+            q[1] = x;
+            q[2] = e;
+        }
+    }
+    points
+}
+
+fn identify<T: Real>(config: SystemConfig, points: &[[f64; 4]]) -> SystemModel<T, 16, 2> {
+    let input = config.base.channels.input;
+    let mut id: Box<SystemIdentifier<T, 256, 16, 2, 3>> =
+        Box::new(SystemIdentifier::new(config).expect("a valid configuration"));
+    for q in points {
+        let e = [T::from_f64(q[2])];
+        id.push(&SystemSample {
+            t: q[0],
+            x: T::from_f64(q[1]),
+            v: None,
+            u: input.then(|| T::from_f64(q[3])),
+            electrical: &e,
+        })
+        .expect("a clean sample");
+    }
+    assert!(id.screen(), "a screening");
+    id.model().expect("a model").clone()
+}
+
+/// Per equation: each true term's relative error (%), and the selected terms that are not
+/// true.
+fn errors<T: Real>(
+    model: &SystemModel<T, 16, 2>,
+    truth: &[Vec<(&'static str, f64)>; 2],
+) -> [(Vec<f64>, Vec<String>); 2] {
+    let names: Vec<String> = (0..model.terms.len())
+        .map(|j| {
+            let mut s = String::new();
+            let _ = model.terms[j].write_name(&mut s, model.omega, &model.electrical);
+            s
+        })
+        .collect();
+    core::array::from_fn(|k| {
+        let e = &model.equations[k];
+        let coefficient = |name: &str| {
+            names
+                .iter()
+                .position(|n| n == name)
+                .filter(|&j| e.support() & (1 << j) != 0)
+                .map_or(0.0, |j| e.coefficients[j].to_f64())
+        };
+        let errors = truth[k]
+            .iter()
+            .map(|&(name, c)| 100.0 * ((coefficient(name) - c) / c).abs())
+            .collect();
+        let spurious = names
+            .iter()
+            .enumerate()
+            .filter(|&(j, n)| e.support() & (1 << j) != 0 && !truth[k].iter().any(|(t, _)| t == n))
+            .map(|(_, n)| n.clone())
+            .collect();
+        (errors, spurious)
+    })
+}
+
+fn text<T: Real>(model: &SystemModel<T, 16, 2>) -> String {
+    let mut s = String::new();
+    for k in 0..model.equations.len() {
+        let _ = model.write_equation(k, 4, &mut s);
+        s.push('\n');
+    }
+    s
+}
+
+/// Identifies `p` over seeds at a noise level with the configuration the host would choose
+/// (`tuned`, or rows as they are with `window`); asserts both equations' supports are the
+/// true ones and every coefficient is within `tolerance` %. Prints the worst error per
+/// equation over the seeds.
+fn check<T: Real>(
+    name: &str,
+    p: &Piezo,
+    noise: f64,
+    seeds: &[u64],
+    window: Option<usize>,
+    tolerance: f64,
+) -> [f64; 2] {
+    let truth = p.truth();
+    let mut worst = [0.0f64; 2];
+    for &seed in seeds {
+        let points = record(p, SAMPLES, noise, seed);
+        let c = match window {
+            Some(w) => config(w, p.input),
+            None => tuned(&points, p.input),
+        };
+        let model = identify::<T>(c, &points);
+        let found = errors(&model, &truth);
+        for (k, (errs, spurious)) in found.iter().enumerate() {
+            let max = errs.iter().copied().fold(0.0, f64::max);
+            worst[k] = worst[k].max(max);
+            assert!(
+                spurious.is_empty() && max < tolerance,
+                "{name}, noise {noise}, seed {seed}, equation {k}: errors {errs:.3?} %, spurious {spurious:?}\n{}",
+                text(&model)
+            );
+        }
+    }
+    std::println!(
+        "{name} {} noise {:.0} % ({}): worst coefficient error x'' {:.3} %, V' {:.3} % over {} seeds",
+        core::any::type_name::<T>(),
+        noise * 100.0,
+        window.map_or("weak form, tuned".to_string(), |w| std::format!("rows as they are, window {w}")),
+        worst[0],
+        worst[1],
+        seeds.len()
+    );
+    worst
+}
+
+/// Noise-free records, mono- and bistable, f64 and f32: both equations with exactly the
+/// true terms, every coefficient within 1 %.
+#[test]
+fn a_clean_piezo_harvester_gives_both_equations() {
+    for p in [Piezo::monostable().with_input(0.4), Piezo::bistable().with_input(0.3)] {
+        let name = if p.k1 < 0.0 { "monostable" } else { "bistable" };
+        check::<f64>(name, &p, 0.0, &[0], None, 1.0);
+        check::<f32>(name, &p, 0.0, &[0], None, 1.0);
+        check::<f64>(name, &p, 0.0, &[0], Some(15), 1.0);
+        check::<f32>(name, &p, 0.0, &[0], Some(15), 1.0);
+    }
+}
+
+/// 1 % white noise on x and on V, four seeds (two in f32): the true terms only, every
+/// coefficient within 5 %.
+#[test]
+fn a_noisy_piezo_harvester_gives_both_equations() {
+    for p in [Piezo::monostable().with_input(0.4), Piezo::bistable().with_input(0.3)] {
+        let name = if p.k1 < 0.0 { "monostable" } else { "bistable" };
+        check::<f64>(name, &p, 0.01, &[11, 12, 13, 14], None, 5.0);
+        check::<f32>(name, &p, 0.01, &[11, 12], None, 5.0);
+    }
+}
+
+/// An f32 identification is a pure function of its samples: two runs, the same bits.
+#[test]
+fn an_f32_run_equals_itself() {
+    let p = Piezo::bistable().with_input(0.3);
+    let points = record(&p, SAMPLES / 4, 0.01, 21);
+    let c = tuned(&points, true);
+    let a = identify::<f32>(c, &points);
+    let b = identify::<f32>(c, &points);
+    for (ea, eb) in a.equations.iter().zip(&b.equations) {
+        assert_eq!(ea.coefficients.map(f32::to_bits), eb.coefficients.map(f32::to_bits));
+        assert_eq!(ea.solutions, eb.solutions);
+        assert_eq!(ea.selected, eb.selected);
+    }
+}
+
+/// What the two-equation identifier takes in memory (printed for the record; the bound
+/// holds the design's figure).
+#[test]
+fn memory_of_the_two_equation_identifier() {
+    let device = core::mem::size_of::<SystemIdentifier<f32, 256, 16, 2, 2>>();
+    let with_input = core::mem::size_of::<SystemIdentifier<f32, 256, 16, 2, 3>>();
+    let host = core::mem::size_of::<SystemIdentifier<f64, 256, 16, 2, 3>>();
+    let one = core::mem::size_of::<crate::Identifier<f32, 256, 16, 2>>();
+    let multi = core::mem::size_of::<MultiFactor<f32, 16, 2>>();
+    let single = core::mem::size_of::<Factor<f32, 16>>();
+    std::println!(
+        "SystemIdentifier<f32, 256, 16, 2, 2> (x, V): {device} B; with u: {with_input} B; f64 with u: {host} B; \
+         single-equation Identifier<f32, 256, 16, 2>: {one} B; MultiFactor<f32, 16, 2>: {multi} B against 2 × Factor<f32, 16>: {} B",
+        2 * single
+    );
+    assert!(multi < 2 * single);
+    assert!(device < 12 * 1024, "{device}");
+}
+
+/// The host's choice for a record: the weak form's test function and short window from the
+/// mean period of x (`tuning`), or rows as they are with the window `tuning` picks.
+fn tuned(points: &[[f64; 4]], input: bool) -> SystemConfig {
+    let x: Vec<f64> = points.iter().map(|q| q[1]).collect();
+    let choice = crate::tuning::choose_window::<f64, 256>(&x, 2, DT, x.len()).expect("a window");
+    let mut c = config(choice.window, input);
+    c.base.derivative_degree = choice.degree;
+    if let Some(weak) = crate::tuning::choose_test_rows::<256>(choice.period, x.len()) {
+        c.base.test_rows = weak.test_rows;
+        c.base.window = weak.window;
+        c.base.derivative_degree = weak.degree;
+        c.base.row_stride = 1;
+    }
+    c
+}
