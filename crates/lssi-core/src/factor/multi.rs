@@ -187,10 +187,7 @@ mod tests {
         let (x, v, e) = (t.sin(), (0.7 * t).cos(), (1.3 * t).sin() * 0.5);
         (
             [1.0, x, v, e, x * e],
-            [
-                -2.0 * x + 0.3 * e + 0.01 * (i % 5) as f64,
-                -e - 0.4 * v,
-            ],
+            [-2.0 * x + 0.3 * e + 0.01 * (i % 5) as f64, -e - 0.4 * v],
         )
     }
 
@@ -206,7 +203,11 @@ mod tests {
                 let (theta, y) = row(i);
                 block.update(&theta, &y, sqrt_lambda);
                 if i % 16 == 15 {
-                    multi.forget(if sqrt_lambda == 1.0 { 1.0 } else { 0.999f64.powi(16) });
+                    multi.forget(if sqrt_lambda == 1.0 {
+                        1.0
+                    } else {
+                        0.999f64.powi(16)
+                    });
                     multi.merge(&block);
                     block.clear();
                 }
@@ -214,7 +215,11 @@ mod tests {
                     f.update(&theta, y[k], sqrt_lambda);
                 }
             }
-            multi.forget(if sqrt_lambda == 1.0 { 1.0 } else { 0.999f64.powi(300 % 16) });
+            multi.forget(if sqrt_lambda == 1.0 {
+                1.0
+            } else {
+                0.999f64.powi(300 % 16)
+            });
             multi.merge(&block);
             let mut f = Factor::<f64, 8>::new(0);
             for k in 0..2 {
@@ -234,7 +239,10 @@ mod tests {
             multi.equation(1, &mut f);
             let mut xi = [0.0; 8];
             f.solve(0b01100, &mut xi);
-            assert!((xi[2] + 0.4).abs() < 1e-9 && (xi[3] + 1.0).abs() < 1e-9, "{xi:?}");
+            assert!(
+                (xi[2] + 0.4).abs() < 1e-9 && (xi[3] + 1.0).abs() < 1e-9,
+                "{xi:?}"
+            );
         }
     }
 

@@ -330,7 +330,11 @@ impl<const P: usize> StateLibrary<P> {
     /// Column `j`'s name (empty past the last column).
     pub fn name(&self, j: usize, omega: f64) -> StateTermName {
         StateTermName {
-            term: self.terms.get(j).copied().unwrap_or(StateTerm::Monomial([0; STATES])),
+            term: self
+                .terms
+                .get(j)
+                .copied()
+                .unwrap_or(StateTerm::Monomial([0; STATES])),
             omega,
             electrical: self.config.electrical,
         }
@@ -442,8 +446,8 @@ mod tests {
     /// among them by degree; names as everywhere (`x*V`, `v*i`).
     #[test]
     fn terms_and_names() {
-        let library = StateLibrary::<16>::new(&config([Some(Electrical::Voltage), None], 2))
-            .expect("fits");
+        let library =
+            StateLibrary::<16>::new(&config([Some(Electrical::Voltage), None], 2)).expect("fits");
         assert_eq!(
             names(&library),
             [
@@ -452,7 +456,11 @@ mod tests {
             ]
         );
         let one = Library::<16>::new(&LibraryConfig::default()).expect("fits");
-        let mechanical: Vec<Term> = library.terms().iter().filter_map(|t| t.mechanical()).collect();
+        let mechanical: Vec<Term> = library
+            .terms()
+            .iter()
+            .filter_map(|t| t.mechanical())
+            .collect();
         assert_eq!(mechanical, one.terms());
         let two = StateLibrary::<32>::new(&StateLibraryConfig {
             mechanical: LibraryConfig {
@@ -509,13 +517,19 @@ mod tests {
     /// A row is the product of its states' powers, scaled; the harmonics those of Ωt.
     #[test]
     fn rows_evaluate_each_term() {
-        let library = StateLibrary::<16>::new(&config([Some(Electrical::Voltage), None], 2))
-            .expect("fits");
+        let library =
+            StateLibrary::<16>::new(&config([Some(Electrical::Voltage), None], 2)).expect("fits");
         let (x, v, e) = (0.3f64, -1.5, 2.0);
         let phase = 0.7f64;
         let mut row = [0.0; 16];
         let ones = [1.0; 16];
-        library.evaluate(&[x, v, e, 0.0], (phase.sin(), phase.cos()), 0.0, &ones, &mut row);
+        library.evaluate(
+            &[x, v, e, 0.0],
+            (phase.sin(), phase.cos()),
+            0.0,
+            &ones,
+            &mut row,
+        );
         let expected = [
             1.0,
             x,

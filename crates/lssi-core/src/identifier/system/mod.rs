@@ -324,7 +324,11 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         // merge of a block of rows is two blocks old, at the start of a block of sums one.
         let (block_len, sqrt_lambda, blocks_old) = if sums.on() {
             let quarter = f64::from(c.test_rows / 4);
-            (TEST_BLOCK, power(sqrt_lambda_row, quarter), TEST_BLOCK as f64)
+            (
+                TEST_BLOCK,
+                power(sqrt_lambda_row, quarter),
+                TEST_BLOCK as f64,
+            )
         } else {
             let len = (2 * c.window / stride).max(16) as u64;
             (len, sqrt_lambda_row, 2.0 * len as f64)
@@ -662,7 +666,15 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             }
             all.copy_from(&a);
             all.merge(&b);
-            screen::sweep(a.view(), b.view(), &all, &mut work, grid, parsimony, &mut sweep);
+            screen::sweep(
+                a.view(),
+                b.view(),
+                &all,
+                &mut work,
+                grid,
+                parsimony,
+                &mut sweep,
+            );
             let y_scale = self.y_scales[k];
             let mut coefficients = [T::ZERO; P];
             for j in 0..n {

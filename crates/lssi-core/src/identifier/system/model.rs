@@ -98,7 +98,12 @@ impl<T: Real, const P: usize, const E: usize> SystemModel<T, P, E> {
 
     /// Writes equation `k` as text, `x'' = -1 x - 0.04 v + 0.1 V + 0.3 cos(0.8t)` (coefficients
     /// with `decimals` places).
-    pub fn write_equation<W: fmt::Write>(&self, k: usize, decimals: usize, out: &mut W) -> fmt::Result {
+    pub fn write_equation<W: fmt::Write>(
+        &self,
+        k: usize,
+        decimals: usize,
+        out: &mut W,
+    ) -> fmt::Result {
         let Some(e) = self.equations.get(k) else {
             return Ok(());
         };

@@ -25,8 +25,18 @@ struct Piezo {
 /// The multisine base acceleration: five incommensurate tones about the resonances, unit
 /// amplitude each.
 fn multisine(t: f64) -> f64 {
-    const TONES: [(f64, f64); 5] = [(0.43, 0.3), (0.71, 2.1), (0.97, 4.0), (1.29, 1.2), (1.63, 5.3)];
-    TONES.iter().map(|(w, phi)| (w * t + phi).cos()).sum::<f64>() / 2.0
+    const TONES: [(f64, f64); 5] = [
+        (0.43, 0.3),
+        (0.71, 2.1),
+        (0.97, 4.0),
+        (1.29, 1.2),
+        (1.63, 5.3),
+    ];
+    TONES
+        .iter()
+        .map(|(w, phi)| (w * t + phi).cos())
+        .sum::<f64>()
+        / 2.0
 }
 
 impl Piezo {
@@ -59,7 +69,11 @@ impl Piezo {
     }
 
     fn with_input(self, force: f64) -> Self {
-        Self { input: true, force, ..self }
+        Self {
+            input: true,
+            force,
+            ..self
+        }
     }
 
     fn forcing(&self, t: f64) -> f64 {
@@ -74,11 +88,7 @@ impl Piezo {
         let [x, v, e] = s;
         [
             v,
-            self.k1 * x
-                + self.k3 * x * x * x
-                + self.c * v
-                + self.chi * e
-                + self.forcing(t),
+            self.k1 * x + self.k3 * x * x * x + self.c * v + self.chi * e + self.forcing(t),
             -self.lambda * e - self.kappa * v,
         ]
     }
@@ -277,7 +287,9 @@ fn check<T: Real>(
         "{name} {} noise {:.0} % ({}): worst coefficient error x'' {:.3} %, V' {:.3} % over {} seeds",
         core::any::type_name::<T>(),
         noise * 100.0,
-        window.map_or("weak form, tuned".to_string(), |w| std::format!("rows as they are, window {w}")),
+        window.map_or("weak form, tuned".to_string(), |w| std::format!(
+            "rows as they are, window {w}"
+        )),
         worst[0],
         worst[1],
         seeds.len()
@@ -289,7 +301,10 @@ fn check<T: Real>(
 /// true terms, every coefficient within 1 %.
 #[test]
 fn a_clean_piezo_harvester_gives_both_equations() {
-    for p in [Piezo::monostable().with_input(0.4), Piezo::bistable().with_input(0.3)] {
+    for p in [
+        Piezo::monostable().with_input(0.4),
+        Piezo::bistable().with_input(0.3),
+    ] {
         let name = if p.k1 < 0.0 { "monostable" } else { "bistable" };
         check::<f64>(name, &p, 0.0, &[0], None, 1.0);
         check::<f32>(name, &p, 0.0, &[0], None, 1.0);
@@ -302,7 +317,10 @@ fn a_clean_piezo_harvester_gives_both_equations() {
 /// coefficient within 5 %.
 #[test]
 fn a_noisy_piezo_harvester_gives_both_equations() {
-    for p in [Piezo::monostable().with_input(0.4), Piezo::bistable().with_input(0.3)] {
+    for p in [
+        Piezo::monostable().with_input(0.4),
+        Piezo::bistable().with_input(0.3),
+    ] {
         let name = if p.k1 < 0.0 { "monostable" } else { "bistable" };
         check::<f64>(name, &p, 0.01, &[11, 12, 13, 14], None, 5.0);
         check::<f32>(name, &p, 0.01, &[11, 12], None, 5.0);
@@ -318,7 +336,10 @@ fn an_f32_run_equals_itself() {
     let a = identify::<f32>(c, &points);
     let b = identify::<f32>(c, &points);
     for (ea, eb) in a.equations.iter().zip(&b.equations) {
-        assert_eq!(ea.coefficients.map(f32::to_bits), eb.coefficients.map(f32::to_bits));
+        assert_eq!(
+            ea.coefficients.map(f32::to_bits),
+            eb.coefficients.map(f32::to_bits)
+        );
         assert_eq!(ea.solutions, eb.solutions);
         assert_eq!(ea.selected, eb.selected);
     }
