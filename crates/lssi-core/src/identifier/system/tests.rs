@@ -440,7 +440,9 @@ fn bad_configurations_are_refused_with_a_reason() {
         coupling_order: 1,
         ..good
     };
-    let e = SystemIdentifier::<f32, 256, 16, 2, 3>::new(two).err().expect("refused");
+    let e = SystemIdentifier::<f32, 256, 16, 2, 3>::new(two)
+        .err()
+        .expect("refused");
     assert_eq!(
         e,
         SystemConfigError::Equations {
@@ -448,7 +450,9 @@ fn bad_configurations_are_refused_with_a_reason() {
             capacity: 2
         }
     );
-    let e = SystemIdentifier::<f32, 256, 16, 3, 2>::new(two).err().expect("refused");
+    let e = SystemIdentifier::<f32, 256, 16, 3, 2>::new(two)
+        .err()
+        .expect("refused");
     assert!(e.to_string().contains("3 channels"), "{e}");
     assert!(SystemIdentifier::<f32, 256, 16, 3, 3>::new(two).is_ok());
 }
@@ -513,9 +517,21 @@ fn a_coil_current_gives_its_own_equation() {
     let terms: Vec<StateTerm> = model.active(rate).map(|(t, _)| t).collect();
     assert_eq!(terms, [v, i], "{}", text(&model));
     let coefficient = |target, term| model.coefficient(target, term).expect("in the library");
-    assert!((coefficient(rate, i) + 2.0).abs() < 1e-3, "{}", text(&model));
-    assert!((coefficient(rate, v) - 0.5).abs() < 1e-3, "{}", text(&model));
-    assert!((coefficient(Target::Acceleration, i) + 0.1).abs() < 1e-3, "{}", text(&model));
+    assert!(
+        (coefficient(rate, i) + 2.0).abs() < 1e-3,
+        "{}",
+        text(&model)
+    );
+    assert!(
+        (coefficient(rate, v) - 0.5).abs() < 1e-3,
+        "{}",
+        text(&model)
+    );
+    assert!(
+        (coefficient(Target::Acceleration, i) + 0.1).abs() < 1e-3,
+        "{}",
+        text(&model)
+    );
     let printed = text(&model);
     assert!(printed.contains("i' = 0.5000 v - 2.0000 i"), "{printed}");
 }
@@ -539,7 +555,12 @@ fn one_forcing_tone_still_gives_the_electrical_equation() {
             "{errs:?} {spurious:?}\n{}",
             text(&model)
         );
-        std::println!("one tone, k1 = {}: x'' errors {:.2?} % spurious {:?}\n{}", p.k1, found[0].0, found[0].1, text(&model));
-}
+        std::println!(
+            "one tone, k1 = {}: x'' errors {:.2?} % spurious {:?}\n{}",
+            p.k1,
+            found[0].0,
+            found[0].1,
+            text(&model)
+        );
     }
 }
