@@ -28,7 +28,7 @@ mod weak;
 
 pub use config::{Channels, Config, ConfigError};
 pub use identifier::system::{
-    SystemConfig, SystemConfigError, SystemIdentifier, SystemModel, SystemSample,
+    SystemConfig, SystemConfigError, SystemIdentifier, SystemModel, SystemSample, SystemSlot,
 };
 pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Snapshot};
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, RowTables, Term};

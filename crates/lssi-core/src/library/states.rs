@@ -215,6 +215,25 @@ pub struct StateLibrary<const P: usize> {
 type Powers<T> = [[T; MAX_POLY_ORDER as usize + 1]; STATES];
 
 impl<const P: usize> StateLibrary<P> {
+    /// No terms: storage for an identifier not configured yet.
+    pub(crate) const fn zeroed() -> Self {
+        Self {
+            terms: heapless::Vec::new(),
+            config: StateLibraryConfig {
+                mechanical: LibraryConfig {
+                    poly_order: 0,
+                    family: super::PolyFamily::All,
+                    constant: false,
+                    harmonics: 0,
+                    input: false,
+                },
+                electrical: [None; MAX_ELECTRICAL],
+                coupling_order: 0,
+            },
+            max_power: 0,
+        }
+    }
+
     /// Builds the library a configuration asks for.
     pub fn new(config: &StateLibraryConfig) -> Result<Self, StateLibraryError> {
         let m = &config.mechanical;

@@ -289,8 +289,65 @@ pub struct SystemIdentifier<
 impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
     SystemIdentifier<T, W, P, E, C>
 {
-    /// Builds an identifier, checking the configuration once.
+    /// Builds an identifier, checking the configuration once. The value is built on the
+    /// stack and moved (9.6 KiB with f32, W = 256, P = 16, E = 2, C = 2); a device keeps
+    /// its identifier in a [`SystemSlot`] instead.
     pub fn new(config: SystemConfig) -> Result<Self, SystemConfigError> {
+        let mut id = Self::empty();
+        id.reconfigure(config)?;
+        Ok(id)
+    }
+
+    /// Storage, not a usable identifier: `const`, all zero bits but the empty enums' tags.
+    const fn empty() -> Self {
+        Self {
+            config: SystemConfig {
+                base: Config::zeroed(),
+                electrical: [None; MAX_ELECTRICAL],
+                coupling_order: 0,
+            },
+            library: StateLibrary::zeroed(),
+            taps: FoldedTaps::empty(),
+            rings: [const { HistoryBuf::new() }; C],
+            v_ring: 0,
+            u_ring: 0,
+            e_ring: 0,
+            electrical: 0,
+            max_abs_sure: T::ZERO,
+            too_early: 0.0,
+            gap_after: 0.0,
+            last_t: None,
+            schedule: Schedule::zeroed(),
+            phasor: Phasor::zeroed(),
+            inverse_scales: [T::ZERO; P],
+            scales: [T::ZERO; P],
+            y_scales: [T::ZERO; E],
+            store: Store::Warmup(heapless::Vec::new()),
+            block: MultiFactor::new(0, 0),
+            sums: SystemTestRows::zeroed(),
+            regression_rows: 0,
+            block_len: 0,
+            sqrt_lambda: T::ZERO,
+            sqrt_lambda_blocks: T::ZERO,
+            counters: Counters {
+                accepted: 0,
+                non_finite: 0,
+                out_of_range: 0,
+                out_of_order: 0,
+                channels: 0,
+                gaps: 0,
+                rows: 0,
+                gated: 0,
+                screenings: 0,
+            },
+            model: None,
+        }
+    }
+
+    /// Configures this identifier anew, in place: afterwards it is what
+    /// `SystemIdentifier::new(config)` builds (every sample, row, factor and model
+    /// forgotten). On an error (the configuration is checked first) nothing changes.
+    pub fn reconfigure(&mut self, config: SystemConfig) -> Result<(), SystemConfigError> {
         config.validate::<W, P, E, C>()?;
         let library = StateLibrary::new(&config.library())?;
         let c = &config.base;
@@ -307,22 +364,18 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
                 max: W,
             })
         })?;
-        let mut taps = FoldedTaps::empty();
-        taps.design(&design, |_| {});
+        self.taps.design(&design, |_| {});
         let n = library.len();
         let electrical = config.library().electrical_count();
         let equations = 1 + electrical;
-        let v_ring = 1;
-        let u_ring = v_ring + usize::from(c.channels.velocity);
-        let e_ring = u_ring + usize::from(c.channels.input);
         let stride = usize::from(c.row_stride);
         let row_period = c.sample_period * f64::from(c.row_stride);
         let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
         let sqrt_lambda_row = libm::sqrt(lambda);
-        let sums = SystemTestRows::new(c.test_rows);
+        self.sums = SystemTestRows::new(c.test_rows);
         // λ and the blocks count in rows, or in sums (one every L/4 rows); A's content at a
         // merge of a block of rows is two blocks old, at the start of a block of sums one.
-        let (block_len, sqrt_lambda, blocks_old) = if sums.on() {
+        let (block_len, sqrt_lambda, blocks_old) = if self.sums.on() {
             let quarter = f64::from(c.test_rows / 4);
             (
                 TEST_BLOCK,
@@ -333,34 +386,33 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             let len = (2 * c.window / stride).max(16) as u64;
             (len, sqrt_lambda_row, 2.0 * len as f64)
         };
-        Ok(Self {
-            config,
-            library,
-            taps,
-            rings: [const { HistoryBuf::new() }; C],
-            v_ring,
-            u_ring,
-            e_ring,
-            electrical,
-            max_abs_sure: T::from_f64(c.max_abs * (1.0 - 1e-6)),
-            too_early: 0.5 * c.sample_period,
-            gap_after: 1.5 * c.sample_period,
-            last_t: None,
-            schedule: Schedule::new(c),
-            phasor: Phasor::new(c.omega, row_period),
-            inverse_scales: [T::ONE; P],
-            scales: [T::ONE; P],
-            y_scales: [T::ONE; E],
-            store: Store::Warmup(heapless::Vec::new()),
-            block: MultiFactor::new(n, equations),
-            sums,
-            regression_rows: 0,
-            block_len,
-            sqrt_lambda: T::from_f64(sqrt_lambda),
-            sqrt_lambda_blocks: T::from_f64(power(sqrt_lambda, blocks_old)),
-            counters: Counters::default(),
-            model: None,
-        })
+        self.library = library;
+        for ring in self.rings.iter_mut() {
+            ring.clear();
+        }
+        self.v_ring = 1;
+        self.u_ring = self.v_ring + usize::from(c.channels.velocity);
+        self.e_ring = self.u_ring + usize::from(c.channels.input);
+        self.electrical = electrical;
+        self.max_abs_sure = T::from_f64(c.max_abs * (1.0 - 1e-6));
+        self.too_early = 0.5 * c.sample_period;
+        self.gap_after = 1.5 * c.sample_period;
+        self.last_t = None;
+        self.schedule = Schedule::new(c);
+        self.phasor = Phasor::new(c.omega, row_period);
+        self.inverse_scales = [T::ONE; P];
+        self.scales = [T::ONE; P];
+        self.y_scales = [T::ONE; E];
+        self.store = Store::Warmup(heapless::Vec::new());
+        self.block = MultiFactor::new(n, equations);
+        self.regression_rows = 0;
+        self.block_len = block_len;
+        self.sqrt_lambda = T::from_f64(sqrt_lambda);
+        self.sqrt_lambda_blocks = T::from_f64(power(sqrt_lambda, blocks_old));
+        self.counters = Counters::default();
+        self.model = None;
+        self.config = config;
+        Ok(())
     }
 
     /// The configuration.
@@ -701,6 +753,75 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         }
         self.model = Some(model);
         true
+    }
+}
+
+/// Where a device keeps its [`SystemIdentifier`]: empty until configured, then configured
+/// (and configured again) in place, so that the identifier never exists on the stack.
+/// [`SystemSlot::new`] is `const`: in a `static` the slot lies in `.bss`.
+///
+/// ```
+/// use lssi_core::{Config, SystemConfig, SystemSlot};
+/// use lssi_core::library::Electrical;
+/// let mut slot: Box<SystemSlot<f32, 256, 16, 2, 2>> = Box::new(SystemSlot::new());
+/// assert!(slot.get().is_none());
+/// let config = SystemConfig { base: Config { window: 63, ..Config::default() },
+///                             electrical: [Some(Electrical::Voltage), None], coupling_order: 2 };
+/// slot.configure(config).unwrap();
+/// assert_eq!(slot.get().unwrap().library().len(), 16);
+/// // A refused configuration leaves the slot as it was.
+/// assert!(slot.configure(SystemConfig { coupling_order: 0, ..config }).is_err());
+/// assert_eq!(slot.get().unwrap().config().coupling_order, 2);
+/// ```
+pub struct SystemSlot<
+    T: Real,
+    const W: usize,
+    const P: usize,
+    const E: usize = 2,
+    const C: usize = 2,
+> {
+    configured: bool,
+    identifier: SystemIdentifier<T, W, P, E, C>,
+}
+
+impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize> Default
+    for SystemSlot<T, W, P, E, C>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
+    SystemSlot<T, W, P, E, C>
+{
+    /// An empty slot.
+    pub const fn new() -> Self {
+        Self {
+            configured: false,
+            identifier: SystemIdentifier::empty(),
+        }
+    }
+
+    /// Configures the identifier in place (as [`SystemIdentifier::reconfigure`]); on an
+    /// error the slot is left as it was, configured or not.
+    pub fn configure(
+        &mut self,
+        config: SystemConfig,
+    ) -> Result<&mut SystemIdentifier<T, W, P, E, C>, SystemConfigError> {
+        self.identifier.reconfigure(config)?;
+        self.configured = true;
+        Ok(&mut self.identifier)
+    }
+
+    /// The identifier, once configured.
+    pub fn get(&self) -> Option<&SystemIdentifier<T, W, P, E, C>> {
+        self.configured.then_some(&self.identifier)
+    }
+
+    /// The identifier, once configured.
+    pub fn get_mut(&mut self) -> Option<&mut SystemIdentifier<T, W, P, E, C>> {
+        self.configured.then_some(&mut self.identifier)
     }
 }
 

@@ -564,3 +564,133 @@ fn one_forcing_tone_still_gives_the_electrical_equation() {
         );
     }
 }
+
+/// The cost on the host (printed; run with `--ignored`): a row into one factor with two
+/// right-hand sides against two factors, and whole samples through the identifiers.
+#[test]
+#[ignore = "a timing, printed for the record"]
+fn cost_on_the_host() {
+    use std::time::Instant;
+    let rows: Vec<([f32; 16], [f32; 2])> = (0..4096)
+        .map(|i| {
+            let t = i as f32 * 0.01;
+            (
+                core::array::from_fn(|j| (t * (1.0 + j as f32 * 0.37)).sin()),
+                [t.cos(), (2.0 * t).sin()],
+            )
+        })
+        .collect();
+    let repeat = 200;
+    let mut multi = MultiFactor::<f32, 16, 2>::new(16, 2);
+    let start = Instant::now();
+    for _ in 0..repeat {
+        for (theta, y) in &rows {
+            multi.update(theta, y, 1.0);
+        }
+    }
+    let one = start.elapsed().as_secs_f64() / (repeat * rows.len()) as f64;
+    let mut two = [Factor::<f32, 16>::new(16), Factor::<f32, 16>::new(16)];
+    let start = Instant::now();
+    for _ in 0..repeat {
+        for (theta, y) in &rows {
+            two[0].update(theta, y[0], 1.0);
+            two[1].update(theta, y[1], 1.0);
+        }
+    }
+    let separate = start.elapsed().as_secs_f64() / (repeat * rows.len()) as f64;
+    std::println!(
+        "a row of 16 columns, two targets (f32): one factor, two right-hand sides {:.0} ns; two factors {:.0} ns ({})",
+        one * 1e9,
+        separate * 1e9,
+        multi.weight() + two[0].weight() + two[1].weight()
+    );
+    let p = Piezo::bistable().with_input(0.3);
+    let points = record(&p, SAMPLES, 0.01, 31);
+    for c in [tuned(&points, true), config(127, true)] {
+        let start = Instant::now();
+        let model = identify::<f32>(c, &points);
+        let per = start.elapsed().as_secs_f64() / points.len() as f64;
+        std::println!(
+            "SystemIdentifier<f32> x, V, u, test_rows {}, window {}: {:.0} ns a sample (with one screening), {} rows",
+            c.base.test_rows,
+            c.base.window,
+            per * 1e9,
+            model.rows
+        );
+        // The single-equation path on the same x and u, same settings.
+        let mut id: Box<crate::Identifier<f32, 256, 16, 3>> =
+            Box::new(crate::Identifier::new(c.base).expect("valid"));
+        let start = Instant::now();
+        for q in &points {
+            let _ = id.push(crate::Sample {
+                t: q[0],
+                x: q[1] as f32,
+                v: None,
+                u: Some(q[3] as f32),
+            });
+        }
+        id.screen();
+        let per = start.elapsed().as_secs_f64() / points.len() as f64;
+        std::println!(
+            "  Identifier<f32> x, u, same settings: {:.0} ns a sample",
+            per * 1e9
+        );
+    }
+}
+
+/// A slot configured (twice, the first time with another configuration and some samples)
+/// gives what `new` gives, bit for bit; with a memory the identifier still finds the
+/// system, from the recent rows.
+#[test]
+fn a_slot_and_a_memory() {
+    let p = Piezo::bistable().with_input(0.3);
+    let points = record(&p, SAMPLES / 2, 0.01, 41);
+    let c = tuned(&points, true);
+    let mut slot: Box<SystemSlot<f32, 256, 16, 2, 3>> = Box::new(SystemSlot::new());
+    let other = config(31, true);
+    let id = slot.configure(other).expect("valid");
+    for q in &points[..5000] {
+        let e = [q[2] as f32];
+        let s = SystemSample {
+            t: q[0],
+            x: q[1] as f32,
+            v: None,
+            u: Some(q[3] as f32),
+            electrical: &e,
+        };
+        id.push(&s).expect("clean");
+    }
+    let id = slot.configure(c).expect("valid");
+    for q in &points {
+        let e = [q[2] as f32];
+        let s = SystemSample {
+            t: q[0],
+            x: q[1] as f32,
+            v: None,
+            u: Some(q[3] as f32),
+            electrical: &e,
+        };
+        id.push(&s).expect("clean");
+    }
+    assert!(id.screen());
+    let fresh = identify::<f32>(c, &points);
+    let slotted = id.model().expect("a model");
+    for (a, b) in slotted.equations.iter().zip(&fresh.equations) {
+        assert_eq!(
+            a.coefficients.map(f32::to_bits),
+            b.coefficients.map(f32::to_bits)
+        );
+    }
+    // A memory of 200 s (a sixth of the record): the same terms.
+    let mut remembering = c;
+    remembering.base.memory = Some(200.0);
+    let model = identify::<f64>(remembering, &points);
+    let found = errors(&model, &p.truth());
+    for (errs, spurious) in &found {
+        assert!(
+            spurious.is_empty() && errs.iter().all(|e| *e < 5.0),
+            "{errs:?} {spurious:?}\n{}",
+            text(&model)
+        );
+    }
+}

@@ -23,6 +23,19 @@ pub(super) struct SystemTestRows<T, const P: usize, const E: usize> {
 }
 
 impl<T: Real, const P: usize, const E: usize> SystemTestRows<T, P, E> {
+    /// Off, every field zero.
+    pub(super) const fn zeroed() -> Self {
+        Self {
+            width: 0,
+            quarter: 0,
+            phase: 0,
+            step: T::ZERO,
+            inverse_norm: T::ZERO,
+            columns: [[T::ZERO; P]; 4],
+            targets: [[T::ZERO; E]; 4],
+        }
+    }
+
     /// Sums of width `width` (a multiple of 4, at least 8; 0: off), empty.
     pub(super) fn new(width: u16) -> Self {
         let mut s = Self {
