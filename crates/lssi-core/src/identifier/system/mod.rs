@@ -6,7 +6,7 @@
 //! channel (the voltage V across the load, or the current i) a first-order one, V' = f.
 //! Every equation is sparse over one shared library of the states
 //! ([`StateLibrary`]: 1, x, v, V, x², x·V, v·V, …, sin/cos kΩt, u) and is selected on its
-//! own (its own threshold sweep and held-out MES, [`crate::screen`]'s, unchanged). A
+//! own (its own threshold sweep and held-out MES, the `screen` module's, unchanged). A
 //! piezoelectric harvester's standard form comes out as
 //!
 //! ```text
@@ -18,27 +18,54 @@
 //! The equations share the row θ(states, t, u); only their targets (x̂'', V̂', …) differ. So
 //! the rows go into one square-root factor R with one z and ρ² per equation
 //! ([`MultiFactor`]): the Givens rotations are made once per row and applied to R once,
-//! each target costs a rotation of its z. Per regression row with n columns and E
-//! equations: ≈ 3.5·n² + 7·E·n flops and n square roots, against E·(3.5·n² + 7·n) for one
-//! factor per equation: with n = 16, E = 2, about 1 130 flops instead of 2 020 (−44 %), and
-//! the held-out halves A and B and the block in progress take 3·(P² + E·P + E + 1) numbers
-//! instead of 3·E·(P² + P + 2) (3.5 KB instead of 6.6 KB with f32, P = 16). At a screening
-//! each equation's (R, z_k, ρ²_k) is copied out into an ordinary [`Factor`] (the factor its
-//! own single-target regression would have built, to rounding) and swept as one equation is.
+//! each target costs a rotation of its z. A rotation application is 7 flops, a Givens
+//! about 10 and a square root, so a row with n columns and E equations costs
+//! 7·n(n − 1)/2 + 7·E·n + 10·n flops, against E·(7·n(n − 1)/2 + 17·n) for one factor per
+//! equation: with n = 16 and E = 2, 1 224 flops instead of 2 224 (−45 %; measured on the
+//! host in f32, 630–710 ns a row instead of 1 510–1 530, `cost_on_the_host`). Memory: the
+//! held-out halves A and B and the block in progress are three such factors,
+//! P² + E·P + E + 1 numbers each instead of E·(P² + P + 2) (1 184 bytes instead of 2 208
+//! with f32, P = 16, E = 2). At a screening each equation's (R, z_k, ρ²_k) is copied out
+//! into an ordinary [`Factor`] (the factor its own single-target regression would have
+//! built, to rounding) and swept and selected as one equation is; the screening's stack
+//! holds three such factors, one P × P scratch matrix and a sweep (about 5 KB with f32,
+//! P = 16).
 //!
-//! # The front end
+//! # The front end and the cost of a sample
 //!
 //! One ring buffer of `W` samples per channel and the one set of folded Savitzky–Golay taps
 //! of the single-equation path ([`FoldedTaps`]): x̂, x̂' and x̂'' from x (or v̂ and v̂' from a
 //! measured v), and V̂ and V̂' from V with the value and first-derivative taps, so that every
-//! state and target lags the newest sample by the same half window. Per row, the taps cost
-//! ⌈N/2⌉ multiply-adds per estimate: five estimates (x̂, x̂', x̂'', V̂, V̂') with N = 255 are
-//! 640 multiply-adds. Rows come every `row_stride` samples.
+//! state and target lags the newest sample by the same half window. Each estimate costs
+//! ⌈N/2⌉ multiply-adds. With test-function rows (`Config::test_rows`, the weak form of the
+//! single-equation path, one sum of rows and of each target) a row is made at
+//! every sample: with x, V and u, N = 21 and 16 terms, about 130 flops of taps, 70 of
+//! library row and 150 of sums a sample, plus one row into A or B every L/4 samples (with
+//! L = 340, 15 flops a sample): about 370 flops a sample. With rows as they are, every
+//! fourth sample, N = 127: 770 flops of taps, 70 of library, 1 224 of factor and 80 of
+//! block merges a row, about 540 a sample. Measured on the host in f32 with one screening:
+//! 380–550 ns a sample for either (the single-equation identifier on x and u with the same
+//! settings: 280–300 ns).
+//!
+//! Memory: `SystemIdentifier<f32, 256, 16, 2, 2>` (x and V, 16 terms, two equations) is
+//! 9 856 bytes on the host (`memory_of_the_two_equation_identifier`; the single-equation
+//! `Identifier<f32, 256, 16, 2>`: 8 784): taps 2 KB, two rings 2 KB, the warm-up rows or
+//! the halves A and B 2.5 KB, the block 1.2 KB, the sums 0.3 KB, the model 1.1 KB.
 //!
 //! What the single-equation path has and this one has not (yet): the k-neighbour smoothing
 //! of the states (`Config::smoothing` is ignored), the search of the sensor origins
-//! (`Config::offsets` is ignored: a constant term takes a static offset), the excitation
-//! gate, test-function rows (`Config::test_rows` must be 0) and the noise correction.
+//! (`Config::offsets` is ignored: a constant term takes a static offset, but a misplaced
+//! origin of x shows as even powers), the excitation gate, the noise correction (refused),
+//! and several displacements (one mechanical equation).
+//!
+//! # What the data must hold
+//!
+//! V is v through a first-order lag: under one forcing tone in steady state it is, at that
+//! frequency, a combination of x and v, and so is cos Ωt. Only the harmonics a
+//! nonlinearity adds then tell χ·V from the stiffness, damping and forcing terms of x''
+//! (the V' equation, whose target is V' itself, comes out regardless). A record with a
+//! broadband excitation (a measured base acceleration u, a sweep, chaos) or transients
+//! identifies both equations; one with a single tone may give x'' without its χ·V.
 //!
 //! ```
 //! use lssi_core::identifier::system::{SystemConfig, SystemIdentifier, SystemSample, Target};
