@@ -5,11 +5,12 @@
 //! differs. The Givens rotations that fold a row into R depend on θ alone, so one R serves
 //! every equation and each target only needs its own z and ρ²: RᵀR = Σ λ^age θθᵀ and
 //! Rᵀz_k = Σ λ^age θ y_k. A row costs the rotations of R once (n(n − 1)/2 rotation
-//! applications of 7 flops, n Givens with one square root) plus 7 flops per column and
-//! target for the z's, where one factor per equation would rotate R once per equation:
-//! with n = 16 columns and two equations about 1 370 flops a row instead of 2 540, and
-//! P² + E·P + E + 2 numbers of memory instead of E·(P² + P + 2) (1 176 bytes instead of
-//! 2 192 with f32, P = 16, E = 2). Each equation's factor is then exactly the factor a
+//! applications of 7 flops, n Givens of about 10 flops and a square root) plus 7 flops per
+//! column and target for the z's, where one factor per equation would rotate R once per
+//! equation: with n = 16 columns and two equations 1 224 flops a row instead of 2 224, and
+//! P² + E·P + E + 1 numbers of memory instead of E·(P² + P + 2) (1 184 bytes instead of
+//! 2 208 with f32, P = 16, E = 2, on the host). Each equation's factor is then exactly the
+//! factor a
 //! single-target regression of its rows would have built, to rounding: the rotations are the
 //! same ones and every z_k sees them in the same order ([`MultiFactor::equation`]).
 
