@@ -10,9 +10,9 @@
 //! equation: with n = 16 columns and two equations 1 224 flops a row instead of 2 224, and
 //! P² + E·P + E + 1 numbers of memory instead of E·(P² + P + 2) (1 184 bytes instead of
 //! 2 208 with f32, P = 16, E = 2, on the host). Each equation's factor is then exactly the
-//! factor a
-//! single-target regression of its rows would have built, to rounding: the rotations are the
-//! same ones and every z_k sees them in the same order ([`MultiFactor::equation`]).
+//! factor a single-target regression of its rows would have built, to rounding: the
+//! rotations are the same ones and every z_k sees them in the same order
+//! ([`MultiFactor::equation`]).
 
 use super::*;
 
