@@ -161,21 +161,18 @@ impl<T: Real, const P: usize, const E: usize> MultiFactor<T, P, E> {
         out.weight = self.weight;
     }
 
-    /// Merges equation `k`'s part of this factor into a single-target factor over the same
-    /// columns (as [`Factor::merge`] with [`MultiFactor::equation`]'s factor, without it).
-    pub fn merge_equation_into(&self, k: usize, out: &mut Factor<T, P>) {
-        if k >= self.targets {
-            return;
-        }
-        let view = FactorRef {
+    /// Equation `k`'s single-target factor (R, z_k, ρ²_k, weight), to read where it is (as
+    /// every single-target factor is read: solved, merged, copied into a [`FactorPair`]);
+    /// `None` for a target out of range.
+    pub fn equation_view(&self, k: usize) -> Option<FactorRef<'_, T, P>> {
+        (k < self.targets).then(|| FactorRef {
             n: self.n,
             r: &self.r,
             flipped: None,
             z: &self.z[k],
             rho2: self.rho2[k],
             weight: self.weight,
-        };
-        out.view_mut().merge(view);
+        })
     }
 }
 

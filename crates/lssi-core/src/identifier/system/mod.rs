@@ -99,7 +99,7 @@ use super::intake::{Counters, Rejection, Schedule, below};
 use super::phasor::Phasor;
 use crate::config::{Config, ConfigError};
 use crate::derivative::{Design, FoldedTaps};
-use crate::factor::{Factor, MultiFactor};
+use crate::factor::{Factor, FactorPair, MultiFactor};
 use crate::library::{
     Electrical, MAX_ELECTRICAL, STATES, StateLibrary, StateLibraryConfig, StateLibraryError,
 };
@@ -710,54 +710,65 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             return false;
         }
         self.counters.screenings += 1;
-        let Store::Halves([a_all, b_all]) = &self.store else {
+        let Self {
+            config,
+            library,
+            store,
+            block,
+            scales,
+            y_scales,
+            electrical,
+            regression_rows,
+            block_len,
+            counters,
+            model,
+            ..
+        } = self;
+        let Store::Halves([a_all, b_all]) = &*store else {
             return false;
         };
-        let n = self.library.len();
-        let equations = 1 + self.electrical;
-        let to_a = (self.regression_rows / self.block_len).is_multiple_of(2);
-        let mut model = SystemModel {
+        let n = library.len();
+        let equations = (1 + *electrical).min(E);
+        let to_a = (*regression_rows / *block_len).is_multiple_of(2);
+        // The model is written in place (a second one on the stack would be 1 KB with f32,
+        // P = 16, E = 2); A and B are one pair, as in the single-equation screening.
+        let model = model.insert(SystemModel {
             terms: heapless::Vec::new(),
-            electrical: self.config.electrical,
+            electrical: config.electrical,
             equations: heapless::Vec::new(),
-            omega: self.config.base.omega,
-            samples: self.counters.accepted,
-            rejected: self.counters.rejected(),
-            rows: self.counters.rows,
-        };
-        for &t in self.library.terms() {
+            omega: config.base.omega,
+            samples: counters.accepted,
+            rejected: counters.rejected(),
+            rows: counters.rows,
+        });
+        for &t in library.terms() {
             let _ = model.terms.push(t);
         }
-        let mut a = Factor::new(n);
-        let mut b = Factor::new(n);
+        let mut ab = FactorPair::new(n);
         let mut all = Factor::new(n);
         let mut work = [[T::ZERO; P]; P];
         let mut sweep = screen::Sweep::new();
-        let grid = usize::from(self.config.base.thresholds);
-        let parsimony = T::from_f64(self.config.base.parsimony);
-        for k in 0..equations.min(E) {
-            a_all.equation(k, &mut a);
-            b_all.equation(k, &mut b);
+        let grid = usize::from(config.base.thresholds);
+        let parsimony = T::from_f64(config.base.parsimony);
+        for k in 0..equations {
+            let (Some(a), Some(b)) = (a_all.equation_view(k), b_all.equation_view(k)) else {
+                break;
+            };
+            ab.a_mut().copy_from(a);
+            ab.b_mut().copy_from(b);
             // The block in progress belongs to the half its next row goes to.
-            if self.block.weight() > T::ZERO {
-                self.block
-                    .merge_equation_into(k, if to_a { &mut a } else { &mut b });
+            if let Some(open) = block.equation_view(k)
+                && open.weight() > T::ZERO
+            {
+                ab.half_mut(to_a).merge(open);
             }
-            all.copy_from(&a);
-            all.merge(&b);
-            screen::sweep(
-                a.view(),
-                b.view(),
-                &all,
-                &mut work,
-                grid,
-                parsimony,
-                &mut sweep,
-            );
-            let y_scale = self.y_scales[k];
+            all.copy_from_view(ab.a());
+            all.view_mut().merge(ab.b());
+            screen::sweep(ab.a(), ab.b(), &all, &mut work, grid, parsimony, &mut sweep);
+            let y_scale = y_scales[k];
             let mut coefficients = [T::ZERO; P];
             for j in 0..n {
-                coefficients[j] = sweep.coefficients[j] * y_scale / self.scales[j];
+                coefficients[j] = sweep.coefficients[j] * y_scale / scales[j];
             }
             let mut solutions = heapless::Vec::new();
             for s in sweep.solutions.iter() {
@@ -769,7 +780,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             let target = if k == 0 {
                 Target::Acceleration
             } else {
-                Target::Rate(self.config.electrical[k - 1].unwrap_or(Electrical::Voltage))
+                Target::Rate(config.electrical[k - 1].unwrap_or(Electrical::Voltage))
             };
             let _ = model.equations.push(Equation {
                 target,
@@ -778,7 +789,6 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
                 selected: sweep.selected,
             });
         }
-        self.model = Some(model);
         true
     }
 }

@@ -650,7 +650,7 @@ fn a_slot_and_a_memory() {
     let p = Piezo::bistable().with_input(0.3);
     let points = record(&p, SAMPLES / 2, 0.01, 41);
     let c = tuned(&points, true);
-    let mut slot: Box<SystemSlot<f32, 256, 16, 2, 3>> = Box::new(SystemSlot::new());
+    let mut slot: Box<SystemSlot<f32, 256, 16, 2, 3>> = Box::default();
     let other = config(31, true);
     let id = slot.configure(other).expect("valid");
     for q in &points[..5000] {
