@@ -500,6 +500,22 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
     /// [`SystemIdentifier::model`]), `Ok(false)` otherwise, and `Err` (counted) for a sample
     /// that was not fed in.
     pub fn push(&mut self, sample: &SystemSample<'_, T>) -> Result<bool, Rejection> {
+        self.push_with(sample, Self::select)
+    }
+
+    /// Feeds one sample like [`SystemIdentifier::push`], but at a scheduled screening hands
+    /// the identifier to `screening` instead of screening in place, and returns what it
+    /// returns (`push` passes [`SystemIdentifier::select`]). A device that must not stall
+    /// passes a closure that copies the state into a [`SystemSnapshot`]
+    /// ([`SystemIdentifier::snapshot_into`]) and returns `false`; the snapshot's `select`
+    /// then gives, bit for bit, the model `push` would have made here (a screening changes
+    /// nothing but the model). `screening` is called only when a screening can run, with
+    /// the screening already counted.
+    pub fn push_with(
+        &mut self,
+        sample: &SystemSample<'_, T>,
+        screening: impl FnOnce(&mut Self) -> bool,
+    ) -> Result<bool, Rejection> {
         if let Err(r) = self.check(sample) {
             self.counters.reject(r);
             return Err(r);
@@ -532,10 +548,12 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         if !self
             .schedule
             .screening_due(self.config.base.screening_period)
+            || !self.can_screen()
         {
             return Ok(false);
         }
-        Ok(self.screen())
+        self.counters.screenings += 1;
+        Ok(screening(self))
     }
 
     /// The states, input and targets at the centre of the (full) window.
@@ -710,6 +728,17 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             return false;
         }
         self.counters.screenings += 1;
+        self.select()
+    }
+
+    /// The screening proper, on the state as it is: each equation's sweep and MES; the
+    /// model becomes [`SystemIdentifier::model`]. Returns whether one came out. Changes
+    /// nothing but the model. [`SystemIdentifier::screen`] runs it after its checks; on a
+    /// [`SystemSnapshot`] it is the screening of the state the snapshot was taken from.
+    pub fn select(&mut self) -> bool {
+        if !self.can_screen() {
+            return false;
+        }
         let Self {
             config,
             library,
@@ -790,6 +819,83 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             });
         }
         true
+    }
+}
+
+/// What a system's screening reads, without the front end (ring buffers and taps): a
+/// [`SystemIdentifier`] of window capacity 1 and one ring, filled by
+/// [`SystemIdentifier::snapshot_into`] and screened by [`SystemIdentifier::select`].
+pub type SystemSnapshot<T, const P: usize, const E: usize = 2> = SystemIdentifier<T, 1, P, E, 1>;
+
+impl<T: Real, const P: usize, const E: usize> SystemIdentifier<T, 1, P, E, 1> {
+    /// An empty snapshot: `const` (a static of it lies in `.bss`).
+    pub const fn snapshot() -> Self {
+        Self::empty()
+    }
+}
+
+impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
+    SystemIdentifier<T, W, P, E, C>
+{
+    /// Copies into `s` everything a screening reads (all but the ring buffers, the taps and
+    /// `s`'s own model, which it keeps). Then `s.select()` is the screening of this
+    /// identifier as it is now. Destructured field by field, so that a field added to the
+    /// identifier does not compile until it is copied here or said to be left out.
+    pub fn snapshot_into<const W2: usize, const C2: usize>(
+        &self,
+        s: &mut SystemIdentifier<T, W2, P, E, C2>,
+    ) {
+        let SystemIdentifier {
+            config,
+            library,
+            taps: _,
+            rings: _,
+            v_ring,
+            u_ring,
+            e_ring,
+            electrical,
+            max_abs_sure,
+            too_early,
+            gap_after,
+            last_t,
+            schedule,
+            phasor,
+            inverse_scales,
+            scales,
+            y_scales,
+            store,
+            block,
+            sums,
+            regression_rows,
+            block_len,
+            sqrt_lambda,
+            sqrt_lambda_blocks,
+            counters,
+            model: _,
+        } = self;
+        s.config = *config;
+        s.library.clone_from(library);
+        s.v_ring = *v_ring;
+        s.u_ring = *u_ring;
+        s.e_ring = *e_ring;
+        s.electrical = *electrical;
+        s.max_abs_sure = *max_abs_sure;
+        s.too_early = *too_early;
+        s.gap_after = *gap_after;
+        s.last_t = *last_t;
+        s.schedule = *schedule;
+        s.phasor = *phasor;
+        s.inverse_scales = *inverse_scales;
+        s.scales = *scales;
+        s.y_scales = *y_scales;
+        s.store.clone_from(store);
+        s.block.clone_from(block);
+        s.sums.clone_from(sums);
+        s.regression_rows = *regression_rows;
+        s.block_len = *block_len;
+        s.sqrt_lambda = *sqrt_lambda;
+        s.sqrt_lambda_blocks = *sqrt_lambda_blocks;
+        s.counters = *counters;
     }
 }
 

@@ -359,6 +359,8 @@ fn memory_of_the_two_equation_identifier() {
     let one = core::mem::size_of::<crate::Identifier<f32, 256, 16, 2>>();
     let multi = core::mem::size_of::<MultiFactor<f32, 16, 2>>();
     let single = core::mem::size_of::<Factor<f32, 16>>();
+    let snapshot = core::mem::size_of::<SystemSnapshot<f32, 16, 2>>();
+    std::println!("SystemSnapshot<f32, 16, 2>: {snapshot} B");
     std::println!(
         "SystemIdentifier<f32, 256, 16, 2, 2> (x, V): {device} B; with u: {with_input} B; f64 with u: {host} B; \
          single-equation Identifier<f32, 256, 16, 2>: {one} B; MultiFactor<f32, 16, 2>: {multi} B against 2 × Factor<f32, 16>: {} B",
@@ -808,4 +810,58 @@ fn spread_over_seeds_and_noise() {
     }
     table::<f64>();
     table::<f32>();
+}
+
+/// A screening deferred to a snapshot gives the model of the inline one, bit for bit, and
+/// the identifier that deferred it goes on exactly as the inline one.
+#[test]
+fn a_deferred_screening_is_the_inline_one() {
+    let p = Piezo::bistable().with_input(0.3);
+    let points = record(&p, SAMPLES / 4, 0.01, 61);
+    let mut c = tuned(&points, true);
+    c.base.screening_period = 7_000;
+    let mut inline: Box<SystemIdentifier<f32, 256, 16, 2, 3>> =
+        Box::new(SystemIdentifier::new(c).expect("valid"));
+    let mut deferred: Box<SystemIdentifier<f32, 256, 16, 2, 3>> =
+        Box::new(SystemIdentifier::new(c).expect("valid"));
+    let mut snapshot: Box<SystemSnapshot<f32, 16, 2>> = Box::new(SystemSnapshot::snapshot());
+    let mut screenings = 0;
+    for q in &points {
+        let e = [q[2] as f32];
+        let s = SystemSample {
+            t: q[0],
+            x: q[1] as f32,
+            v: None,
+            u: Some(q[3] as f32),
+            electrical: &e,
+        };
+        let screened = inline.push(&s).expect("clean");
+        let mut taken = false;
+        deferred
+            .push_with(&s, |id| {
+                id.snapshot_into(&mut snapshot);
+                taken = true;
+                false
+            })
+            .expect("clean");
+        assert_eq!(screened, taken);
+        if taken {
+            screenings += 1;
+            assert!(snapshot.select());
+            let (a, b) = (
+                inline.model().expect("a model"),
+                snapshot.model().expect("a model"),
+            );
+            for (ea, eb) in a.equations.iter().zip(&b.equations) {
+                assert_eq!(
+                    ea.coefficients.map(f32::to_bits),
+                    eb.coefficients.map(f32::to_bits)
+                );
+                assert_eq!(ea.solutions, eb.solutions);
+            }
+        }
+    }
+    assert!(screenings >= 3, "{screenings}");
+    assert!(deferred.model().is_none());
+    assert_eq!(inline.counters(), deferred.counters());
 }
