@@ -208,6 +208,39 @@ fn constant(dir: &Path, name: &str) -> String {
     arg(&path).to_owned()
 }
 
+/// Gaussian white noise (no dynamics at all).
+fn white_noise(dir: &Path, name: &str) -> String {
+    let path = dir.join(name);
+    let mut text = String::from("t,x\n");
+    // A small xorshift and Box-Muller: no dependency for a test's noise.
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut unit = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    for i in 0..8001 {
+        let (a, b) = (unit(), unit());
+        let g = (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos();
+        text.push_str(&format!("{},{g}\n", f64::from(i) / 1000.0));
+    }
+    std::fs::write(&path, text).unwrap();
+    arg(&path).to_owned()
+}
+
+/// A recording whose model `lssi identify` withholds (exit 3): a constant x or white noise,
+/// the first it withholds (the issue asks both to be).
+fn withheld(dir: &Path) -> String {
+    let candidates = [constant(dir, "flat.csv"), white_noise(dir, "noise.csv")];
+    for file in &candidates {
+        if lssi(&["identify", file, "--no-refine"]).status.code() == Some(3) {
+            return file.clone();
+        }
+    }
+    panic!("lssi identify withholds neither a constant x nor white noise");
+}
+
 const FIGURES: [&str; 5] = [
     "model",
     "screening",
@@ -229,7 +262,8 @@ fn plot_draws_every_recording_named_or_names_each_that_failed() {
     let dir = tempfile::tempdir().unwrap();
     let a = generate(dir.path(), "a.csv", 4);
     let b = generate(dir.path(), "b.csv", 5);
-    let flat = constant(dir.path(), "flat.csv");
+    let flat = withheld(dir.path());
+    let flat_stem = Path::new(&flat).file_stem().unwrap().to_str().unwrap();
     let missing = dir.path().join("missing.csv");
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
@@ -254,8 +288,8 @@ fn plot_draws_every_recording_named_or_names_each_that_failed() {
         assert!(printed.contains(&format!("{stem}-model.png")), "{printed}");
     }
     // The withheld model not drawn at all, and said so.
-    assert_eq!(figures_of(&out, "flat"), 0);
-    assert!(err.contains(&format!("{flat}: x is constant")), "{err}");
+    assert_eq!(figures_of(&out, flat_stem), 0);
+    assert!(err.contains(&format!("found in {flat}: ")), "{err}");
     assert!(err.contains("No figure of it was drawn"), "{err}");
     assert!(err.contains(&format!("{}: cannot read the file", missing.display())));
     assert!(err.contains(&format!("{}: the folder holds no .csv", empty.display())));
@@ -273,7 +307,7 @@ fn plot_draws_every_recording_named_or_names_each_that_failed() {
     let run = lssi(&["plot", &flat, &a, "--no-refine", "--out", arg(&out3)]);
     assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
     assert_eq!(figures_of(&out3, "a"), 10);
-    assert_eq!(figures_of(&out3, "flat"), 0);
+    assert_eq!(figures_of(&out3, flat_stem), 0);
     // The withheld one alone: exit 3, nothing written.
     let run = lssi(&["plot", &flat, "--out", arg(&out3)]);
     assert_eq!(run.status.code(), Some(3));
@@ -329,5 +363,96 @@ fn a_figure_that_cannot_be_written_is_an_error_naming_its_file() {
         stderr(&run).contains(&format!("{}: cannot write", below_a_file.display())),
         "{}",
         stderr(&run)
+    );
+}
+
+/// The data rows of a CSV file, without its header.
+fn rows(path: &str) -> (String, Vec<String>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().map(str::to_owned);
+    let header = lines.next().unwrap();
+    (header, lines.collect())
+}
+
+fn write_rows(path: &Path, header: &str, rows: &[String]) -> String {
+    std::fs::write(path, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+    arg(path).to_owned()
+}
+
+fn last_line(text: &str) -> &str {
+    text.lines().last().unwrap_or_default()
+}
+
+#[test]
+fn info_names_gaps_short_files_and_constant_signals_as_identify_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = generate(dir.path(), "good.csv", 7);
+    let (header, all) = rows(&good);
+    // Every 50th sample dropped after the first 1000: gaps everywhere, too broken.
+    let dropped: Vec<String> = all
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i <= 1000 || i % 50 != 0)
+        .map(|(_, r)| r.clone())
+        .collect();
+    let dropped = write_rows(&dir.path().join("dropped.csv"), &header, &dropped);
+    // One gap of 2000 samples (1 s): named, still usable.
+    let one_gap: Vec<String> = all
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !(4000..6000).contains(i))
+        .map(|(_, r)| r.clone())
+        .collect();
+    let one_gap = write_rows(&dir.path().join("one-gap.csv"), &header, &one_gap);
+    let short = write_rows(&dir.path().join("short.csv"), &header, &all[..30]);
+    let flat = constant(dir.path(), "flat.csv");
+
+    let info = |file: &str| {
+        let out = lssi(&["info", file]);
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr(&out),
+        )
+    };
+    // A clean recording: no warning, the configuration identify would use, exit 0.
+    let (code, text, err) = info(&good);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!text.contains("warning"), "{text}");
+    assert!(
+        text.contains("identifier (default flags): sample period"),
+        "{text}"
+    );
+
+    let (code, text, _) = info(&one_gap);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("warning: 1 time gap"), "{text}");
+    assert!(text.contains("data row 4001"), "{text}");
+
+    // Refused as identify refuses them: the same sentence, the same exit code.
+    for (file, code, says) in [
+        (&dropped, 2, "too broken to identify"),
+        (&short, 2, "only 30 usable samples"),
+        (&flat, 3, "x is constant"),
+    ] {
+        let (info_code, text, err) = info(file);
+        assert_eq!(info_code, Some(code), "{file}: {err}");
+        // The summary is still printed.
+        assert!(text.starts_with(&format!("{file}: ")), "{text}");
+        let sentence = last_line(&err);
+        assert!(sentence.contains(says), "{file}: {err}");
+        assert!(sentence.contains(file.as_str()), "{sentence}");
+        // The configuration's refusals are identify's own sentences. (A constant x is the
+        // quality gate's first check, withheld with exit 3: issue 25.)
+        if code == 2 {
+            let identify = lssi(&["identify", file, "--no-refine"]);
+            assert_eq!(identify.status.code(), Some(code), "{file}");
+            assert_eq!(last_line(&stderr(&identify)), sentence, "{file}");
+        }
+    }
+    let (_, text, _) = info(&dropped);
+    assert!(
+        text.contains("warning: 2") && text.contains("time gaps"),
+        "{text}"
     );
 }
