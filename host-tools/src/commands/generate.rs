@@ -2,8 +2,11 @@
 //!
 //! `OUT.csv` gets the observed columns (`t,x`, `t,x,v`, and for `eveh --input` also `u`) and
 //! `OUT.json` the [`Truth`]: the equation's terms and coefficients, every option, and the
-//! noise that was added. Models: `paper` (eq. 17) and `eveh` (the harvester, eq. 19; see
-//! [`crate::synth::eveh`] for how Table 5 becomes its coefficients).
+//! noise that was added. Models: `paper` (eq. 17), `eveh` (the harvester, eq. 19; see
+//! [`crate::synth::eveh`] for how Table 5 becomes its coefficients), and `piezo` and
+//! `electromagnetic` (harvesters with their electrical equation, columns `t`, `x` and/or `v`,
+//! `V` or `i`, and `u` with `--input`; their truth holds both equations, see
+//! [`crate::synth::harvester`]).
 //!
 //! [`Truth`]: crate::synth::truth::Truth
 
@@ -16,7 +19,10 @@ use crate::synth::Observe;
 use crate::synth::eveh::{
     Drift, DriftParameter, EvehOptions, EvehParams, Excitation, Wells, generate_eveh,
 };
-use crate::synth::files::{truth_path, write_eveh, write_generated};
+use crate::synth::files::{truth_path, write_eveh, write_generated, write_harvester};
+use crate::synth::harvester::{
+    Coil, Electrical, HarvesterOptions, Mechanical, Transducer, generate_harvester,
+};
 use crate::synth::noise::NoiseKind;
 use crate::synth::paper::{PaperOptions, PaperParams, generate_paper};
 
@@ -35,6 +41,218 @@ pub enum GenModel {
     Paper(PaperArgs),
     /// The paper's harvester, eq. (19), from Table 5's physical parameters, in SI units.
     Eveh(Box<EvehArgs>),
+    /// A piezoelectric harvester across a load (Erturk & Inman), mono- or bistable: x'' and
+    /// V' = −λV − κx'.
+    Piezo(Box<PiezoArgs>),
+    /// An electromagnetic harvester (a magnet in a coil across a load): x'' and i' (or V', or
+    /// V ∝ x' with --coil negligible).
+    #[command(alias = "em")]
+    Electromagnetic(Box<EmArgs>),
+}
+
+/// What the piezoelectric and electromagnetic harvesters share.
+#[derive(Debug, Clone, Args)]
+pub struct HarvesterArgs {
+    /// Single well, or the double well of a beam between magnets.
+    #[arg(long, value_enum, default_value_t = Wells::Monostable)]
+    pub wells: Wells,
+    /// Base acceleration amplitude A, m/s².
+    #[arg(long, value_name = "M_PER_S2", default_value_t = HarvesterOptions::piezo().amplitude,
+          allow_negative_numbers = true)]
+    pub amplitude: f64,
+    /// Excitation angular frequency Ω, rad/s [default: 2π·8 Hz].
+    #[arg(long, value_name = "RAD_PER_S", default_value_t = HarvesterOptions::piezo().omega,
+          allow_negative_numbers = true)]
+    pub omega: f64,
+    /// Write the base acceleration as a measured column u (m/s²).
+    #[arg(long)]
+    pub input: bool,
+    /// Mechanical channels to write: x, v (a vibrometer's velocity alone), or xv.
+    #[arg(long, value_enum, default_value_t = Mechanical::X)]
+    pub observe: Mechanical,
+    /// Sensor noise: Gaussian, RMS = D times each channel's RMS (0.01 = 1 %).
+    #[arg(
+        long,
+        value_name = "D",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub delta: f64,
+    /// Sample rate, Hz.
+    #[arg(long, value_name = "HZ", default_value_t = HarvesterOptions::piezo().rate,
+          allow_negative_numbers = true)]
+    pub rate: f64,
+    /// Last sample time, seconds.
+    #[arg(long = "t-end", value_name = "T", default_value_t = HarvesterOptions::piezo().t_end,
+          allow_negative_numbers = true)]
+    pub t_end: f64,
+    /// Initial displacement, metres (released from rest there, uncharged) [default: 2 mm
+    /// monostable, the well + 2 mm bistable].
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
+    pub x0: Option<f64>,
+    /// Modal mass m, kg.
+    #[arg(long, value_name = "KG", default_value_t = HarvesterOptions::piezo().mass,
+          allow_negative_numbers = true)]
+    pub mass: f64,
+    /// Natural frequency (short-circuit; in a well for the bistable), Hz.
+    #[arg(long = "freq", value_name = "HZ", default_value_t = HarvesterOptions::piezo().frequency_hz,
+          allow_negative_numbers = true)]
+    pub frequency_hz: f64,
+    /// Mechanical damping ratio ζ [default: 0.015 piezo, 0.01 electromagnetic].
+    #[arg(long, value_name = "ZETA", allow_negative_numbers = true)]
+    pub zeta: Option<f64>,
+    /// Monostable: cubic stiffness per unit mass, m⁻² s⁻² (0: a linear beam).
+    #[arg(
+        long,
+        value_name = "PER_M2_S2",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub cubic: f64,
+    /// Bistable: the wells' position ±x_w, metres.
+    #[arg(long, value_name = "METRES", default_value_t = HarvesterOptions::piezo().well,
+          allow_negative_numbers = true)]
+    pub well: f64,
+    /// Seed of the noise generator; the same seed gives the same file.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// The CSV file to write; the truth goes beside it with the extension .json.
+    #[arg(value_name = "OUT.csv")]
+    pub out: PathBuf,
+}
+
+impl HarvesterArgs {
+    /// The options these flags ask for, on `base` (the model's defaults).
+    fn options(&self, base: HarvesterOptions) -> HarvesterOptions {
+        let x0 = self.x0.unwrap_or(match self.wells {
+            Wells::Monostable => base.initial_displacement,
+            Wells::Bistable => self.well + base.initial_displacement,
+        });
+        HarvesterOptions {
+            wells: self.wells,
+            amplitude: self.amplitude,
+            omega: self.omega,
+            input: self.input,
+            mechanical: self.observe,
+            delta: self.delta,
+            rate: self.rate,
+            t_end: self.t_end,
+            initial_displacement: x0,
+            mass: self.mass,
+            frequency_hz: self.frequency_hz,
+            damping_ratio: self.zeta.unwrap_or(base.damping_ratio),
+            cubic: self.cubic,
+            well: self.well,
+            seed: self.seed,
+            ..base
+        }
+    }
+}
+
+/// Arguments of `lssi gen piezo`.
+#[derive(Debug, Clone, Args)]
+pub struct PiezoArgs {
+    /// The options both harvesters take.
+    #[command(flatten)]
+    pub common: HarvesterArgs,
+    /// Electromechanical coupling θ, N/V [default: k² = θ²/(m ω² C_p) = 0.025, Erturk & Inman's].
+    #[arg(long, value_name = "N_PER_V", allow_negative_numbers = true)]
+    pub theta: Option<f64>,
+    /// Piezo capacitance C_p, farads.
+    #[arg(
+        long,
+        value_name = "FARADS",
+        default_value_t = 50e-9,
+        allow_negative_numbers = true
+    )]
+    pub capacitance: f64,
+    /// Load resistance R, ohms.
+    #[arg(
+        long = "load-ohms",
+        value_name = "OHMS",
+        default_value_t = 1e6,
+        allow_negative_numbers = true
+    )]
+    pub load_ohms: f64,
+}
+
+impl PiezoArgs {
+    /// The generator options these flags ask for.
+    pub fn options(&self) -> HarvesterOptions {
+        let mut o = self.common.options(HarvesterOptions::piezo());
+        let w = 2.0 * std::f64::consts::PI * o.frequency_hz;
+        let theta = self
+            .theta
+            .unwrap_or_else(|| (0.025 * o.mass * w * w * self.capacitance.abs()).sqrt());
+        o.transducer = Transducer::Piezo {
+            theta,
+            capacitance: self.capacitance,
+            load_ohms: self.load_ohms,
+        };
+        o
+    }
+}
+
+/// Arguments of `lssi gen electromagnetic`.
+#[derive(Debug, Clone, Args)]
+pub struct EmArgs {
+    /// The options both harvesters take.
+    #[command(flatten)]
+    pub common: HarvesterArgs,
+    /// With the coil's inductance (an i' equation), or negligible (V ∝ x').
+    #[arg(long, value_enum, default_value_t = Coil::Inductive)]
+    pub coil: Coil,
+    /// The electrical channel written: the load voltage V or the current i.
+    #[arg(long, value_enum, default_value_t = Electrical::V)]
+    pub electrical: Electrical,
+    /// Transduction factor Φ, N/A (= V s/m).
+    #[arg(
+        long,
+        value_name = "N_PER_A",
+        default_value_t = 5.0,
+        allow_negative_numbers = true
+    )]
+    pub phi: f64,
+    /// Coil resistance R_c, ohms.
+    #[arg(
+        long = "coil-ohms",
+        value_name = "OHMS",
+        default_value_t = 1e3,
+        allow_negative_numbers = true
+    )]
+    pub coil_ohms: f64,
+    /// Load resistance R_L, ohms.
+    #[arg(
+        long = "load-ohms",
+        value_name = "OHMS",
+        default_value_t = 1e3,
+        allow_negative_numbers = true
+    )]
+    pub load_ohms: f64,
+    /// Coil inductance L, henries.
+    #[arg(
+        long,
+        value_name = "HENRIES",
+        default_value_t = 10.0,
+        allow_negative_numbers = true
+    )]
+    pub inductance: f64,
+}
+
+impl EmArgs {
+    /// The generator options these flags ask for.
+    pub fn options(&self) -> HarvesterOptions {
+        let mut o = self.common.options(HarvesterOptions::electromagnetic());
+        o.transducer = Transducer::Electromagnetic {
+            phi: self.phi,
+            coil_ohms: self.coil_ohms,
+            load_ohms: self.load_ohms,
+            inductance: self.inductance,
+            coil: self.coil,
+            electrical: self.electrical,
+        };
+        o
+    }
 }
 
 /// Arguments of `lssi gen eveh` (defaults: the shipped bistable recording).
@@ -264,7 +482,65 @@ pub fn run(args: &GenArgs) -> Result<(), CliError> {
     match &args.model {
         GenModel::Paper(paper) => run_paper(paper),
         GenModel::Eveh(eveh) => run_eveh(eveh),
+        GenModel::Piezo(piezo) => run_harvester(&piezo.options(), &piezo.common.out),
+        GenModel::Electromagnetic(em) => run_harvester(&em.options(), &em.common.out),
     }
+}
+
+fn run_harvester(options: &HarvesterOptions, out: &std::path::Path) -> Result<(), CliError> {
+    options.validate().map_err(|error| {
+        let flag = match error.field {
+            "theta" => "--theta",
+            "capacitance" => "--capacitance",
+            "load_ohms" => "--load-ohms",
+            "phi" => "--phi",
+            "coil_ohms" => "--coil-ohms",
+            "inductance" => "--inductance",
+            "mass" => "--mass",
+            "frequency_hz" => "--freq",
+            "damping_ratio" => "--zeta",
+            "cubic" => "--cubic",
+            "well" => "--well",
+            "amplitude" => "--amplitude",
+            "omega" => "--omega",
+            "delta" => "--delta",
+            "rate" | "dt" => "--rate",
+            "t_end" => "--t-end",
+            "initial_displacement" => "--x0",
+            other => other,
+        };
+        let mut error = CliError::from_option(error, flag);
+        if let CliError::BadFlag {
+            flag: "--rate",
+            requirement,
+            ..
+        } = &mut error
+        {
+            *requirement = "a positive sample rate in Hz giving at least two and at most 10 \
+                            million samples over --t-end"
+                .into();
+        }
+        error
+    })?;
+    let json = truth_path(out)?;
+    let generated = generate_harvester(options);
+    if let Some(t) = generated.diverged_at() {
+        return Err(CliError::Diverged {
+            model: generated.truth.model.clone(),
+            t,
+        });
+    }
+    write_harvester(out, &json, &generated)?;
+    crate::outln!(
+        "wrote {} ({} samples of {} over {} s at {} Hz) and {}",
+        out.display(),
+        generated.t.len(),
+        generated.header().join(","),
+        options.t_end,
+        options.rate,
+        json.display()
+    );
+    Ok(())
 }
 
 fn run_eveh(args: &EvehArgs) -> Result<(), CliError> {

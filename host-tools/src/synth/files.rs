@@ -9,6 +9,7 @@ use crate::error::CliError;
 use crate::recording::write_csv;
 use crate::synth::Generated;
 use crate::synth::eveh::EvehGenerated;
+use crate::synth::harvester::HarvesterGenerated;
 
 /// The truth file that goes beside `csv`: same stem, extension `.json`.
 pub fn truth_path(csv: &Path) -> Result<PathBuf, CliError> {
@@ -45,9 +46,14 @@ pub fn write_generated(csv: &Path, json: &Path, generated: &Generated) -> Result
 
 /// Writes the truth of a generated recording, pretty-printed, to `json`.
 fn write_truth(json: &Path, generated: &Generated) -> Result<(), CliError> {
+    write_json(json, &generated.truth)
+}
+
+/// Writes `value`, pretty-printed, to `json`.
+fn write_json(json: &Path, value: &impl serde::Serialize) -> Result<(), CliError> {
     let write_json = || -> std::io::Result<()> {
         let mut writer = BufWriter::new(File::create(json)?);
-        serde_json::to_writer_pretty(&mut writer, &generated.truth)?;
+        serde_json::to_writer_pretty(&mut writer, value)?;
         writeln!(writer)?;
         writer.flush()
     };
@@ -65,6 +71,21 @@ pub fn write_eveh(csv: &Path, json: &Path, generated: &EvehGenerated) -> Result<
         source,
     })?;
     write_truth(json, &generated.generated)
+}
+
+/// Writes a generated harvester-with-circuit recording (`t`, the chosen channels) and its
+/// truth (both equations).
+pub fn write_harvester(
+    csv: &Path,
+    json: &Path,
+    generated: &HarvesterGenerated,
+) -> Result<(), CliError> {
+    let (header, columns) = generated.csv_columns();
+    write_csv(csv, &header, &columns).map_err(|source| CliError::Write {
+        path: csv.to_owned(),
+        source,
+    })?;
+    write_json(json, &generated.truth)
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Synthetic recordings with a known equation, for testing and benchmarking the identifier:
-//! [`paper`] is the paper's eq. (17), [`eveh`] its harvester, eq. (19).
+//! [`paper`] is the paper's eq. (17), [`eveh`] its harvester, eq. (19), and [`harvester`] the
+//! piezoelectric and electromagnetic harvesters with their electrical equation.
 //!
 //! Each generator is a pure function from options to [`Generated`] (no file I/O), so a benchmark
 //! can generate in memory and the `lssi gen` command only writes what it gets ([`files`]). The trajectories
@@ -18,6 +19,7 @@
 
 pub mod eveh;
 pub mod files;
+pub mod harvester;
 pub mod noise;
 pub mod ode;
 pub mod paper;

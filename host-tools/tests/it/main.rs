@@ -9,6 +9,7 @@ mod eveh;
 mod failures_cli;
 mod gate;
 mod generate;
+mod harvester;
 mod libraries;
 mod log_cli;
 mod low_rate;

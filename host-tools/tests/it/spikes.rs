@@ -56,7 +56,7 @@ fn rms(s: &[f64]) -> f64 {
 /// Student's t with `nu` degrees of freedom scaled to the same robust spread (its median
 /// absolute value equal to the Gaussian's, 0.6745 σ), so its tails are what differs.
 fn add_noise(r: &mut Recording, delta: f64, nu: Option<f64>, rng: &mut ChaCha8Rng) {
-    let mut draw = |rng: &mut ChaCha8Rng| -> f64 {
+    let draw = |rng: &mut ChaCha8Rng| -> f64 {
         match nu {
             None => rng.sample(StandardNormal),
             Some(nu) => {
