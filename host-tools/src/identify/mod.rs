@@ -12,6 +12,7 @@
 
 pub mod batch;
 pub mod blemish;
+pub mod device_rate;
 mod omega;
 pub mod pipeline;
 mod polish;
@@ -139,6 +140,9 @@ pub struct Report {
     pub wells: Option<f64>,
     /// Small-oscillation frequency in a well, Hz.
     pub well_resonance_hz: Option<f64>,
+    /// The row rate a device needs for this harvester, Hz ([`device_rate`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device_rate_hz: Option<f64>,
     /// Sensor offsets found (x, v): the model is in x − offset_x, v − offset_v.
     pub offsets: [f64; 2],
     /// Samples fed in.
@@ -379,6 +383,19 @@ pub fn report<T: Real, const P: usize>(
     rejected: u64,
     precision: &str,
 ) -> Report {
+    let mut report = report_of(model, config, omega_estimated, rejected, precision);
+    report.device_rate_hz = report.device_rate().map(|r| r.hz);
+    report
+}
+
+/// [`report`]'s fields from the model, but the device rate.
+fn report_of<T: Real, const P: usize>(
+    model: &lssi_core::Model<T, P>,
+    config: &Config,
+    omega_estimated: bool,
+    rejected: u64,
+    precision: &str,
+) -> Report {
     let omega = model.omega;
     let terms: Vec<TermReport> = model
         .terms
@@ -416,6 +433,7 @@ pub fn report<T: Real, const P: usize>(
         resonance_hz: model.resonance_hz(),
         wells: model.wells(),
         well_resonance_hz: model.well_resonance_hz(),
+        device_rate_hz: None,
         offsets: [model.offset_x.to_f64(), model.offset_v.to_f64()],
         samples: model.samples,
         rejected,
@@ -599,6 +617,10 @@ pub fn render(report: &Report) -> String {
             number(w),
             number(f)
         ));
+    }
+    if let Some(rate) = report.device_rate() {
+        out.push_str(&device_rate::sentence(&rate, report.sample_period));
+        out.push('\n');
     }
     out
 }
