@@ -125,3 +125,159 @@ fn standalone_device_keeps_up_at_10_khz_and_ends_with_the_model_of_identify_f32(
     // The telemetry log was written (lssi log reads it).
     assert!(std::fs::metadata(&log).expect("the log").len() > 1000);
 }
+
+/// The standalone device at the rate the harvester needs: the ADC converts at 10 kHz (what
+/// its anti-alias filter needs), the firmware decimates by 50 (a CIC of order 3) to rows at
+/// 200 Hz, about 60 a forcing period of eveh (Ω = 21.4 rad/s), with the configuration
+/// `lssi identify` chooses for those rows (stored in the image as a host's `Configure`).
+///
+/// No conversion may be lost (0 overruns), the final model must be, coefficient for
+/// coefficient, lssi-core's `f32` identifier run on the same rows (decimated here by the
+/// same `lssi_device::decimate::Decimator`), and it must hold every true term.
+#[test]
+#[ignore = "needs qemu-system-arm and the standalone firmware ELF: bash scripts/ci-qemu.sh runs it"]
+fn standalone_device_decimates_10_khz_to_200_hz_rows_and_ends_with_the_identifiers_model() {
+    use lssi_core::{Identifier, Sample};
+    use lssi_device::decimate::{Decimator, factor_for};
+    use lssi_proto::{DeviceFrameDecoder, DeviceMsg, SnapshotCause};
+
+    const ADC_HZ: f64 = 10_000.0;
+    const ROW_HZ: f64 = 200.0;
+    // The firmware's CIC order (CIC_ORDER in src/bin/lssi-standalone.rs).
+    const ORDER: u8 = 3;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("eveh-10k.csv");
+    let gen_args = Gen::try_parse_from([
+        "gen".as_ref(),
+        "eveh".as_ref(),
+        csv.as_os_str(),
+        "--rate".as_ref(),
+        "10000".as_ref(),
+        "--t-end".as_ref(),
+        "20".as_ref(),
+        "--observe".as_ref(),
+        "x".as_ref(),
+    ] as [&std::ffi::OsStr; 9])
+    .expect("gen arguments")
+    .args;
+    generate::run(&gen_args).expect("lssi gen eveh");
+    let recording = Recording::read(&csv, &ColumnNames::default()).expect("the recording");
+
+    // The rows the device makes: the conversions as the image holds them (f32), decimated.
+    let factor = factor_for(ADC_HZ, 1.0 / ROW_HZ).expect("a whole factor");
+    assert_eq!(factor, 50);
+    let mut decimator = Decimator::new(factor, ORDER).expect("a decimator");
+    let period = f64::from(factor) / ADC_HZ;
+    let offset = decimator.time_offset(ADC_HZ);
+    let rows: Vec<f32> = recording
+        .samples()
+        .filter_map(|s| decimator.push([s.x as f32, 0.0, 0.0]).map(|r| r[0]))
+        .collect();
+    let times: Vec<f64> = (0..rows.len())
+        .map(|i| i as f64 * period + offset)
+        .collect();
+    let xs: Vec<f64> = rows.iter().map(|&x| f64::from(x)).collect();
+    let decimated = dir.path().join("eveh-200.csv");
+    lssi_host::recording::write_csv(&decimated, &["t", "x"], &[&times, &xs]).expect("CSV");
+    let decimated = Recording::read(&decimated, &ColumnNames::default()).expect("rows");
+    let (mut config, _) = lssi_host::identify::configure(&decimated, &Options::default())
+        .expect("lssi identify's configuration for the rows");
+    config.sample_period = period;
+
+    // The identifier on the host, as the device runs it (f32, its capacities).
+    let mut identifier: Box<Identifier<f32, 256, 16, 2>> =
+        Box::new(Identifier::new(config).expect("a valid configuration"));
+    for (&t, &x) in times.iter().zip(&rows) {
+        let _ = identifier.push(Sample {
+            t,
+            x,
+            v: None,
+            u: None,
+        });
+    }
+    assert!(identifier.screen(), "a model from {} rows", rows.len());
+    let expected =
+        lssi_device::wire::snapshot(identifier.model().expect("a model"), SnapshotCause::Final)
+            .expect("fits a snapshot");
+
+    // The firmware under QEMU, the configuration stored as a host's Configure frame.
+    let elf = standalone_elf();
+    assert!(elf.is_file(), "{}: build the firmware first", elf.display());
+    let image = dir.path().join("recording.bin");
+    let bytes = lssi_host::serial::monitor::recording_image(&recording, ADC_HZ, Some(&config))
+        .expect("the PSRAM image");
+    std::fs::write(&image, bytes).expect("write the image");
+    let uart = dir.path().join("uart.bin");
+    let qemu = lssi_host::serial::qemu::find().expect("qemu-system-arm on the PATH");
+    let status = lssi_host::serial::qemu::command(&qemu)
+        .args(["-icount", "shift=4,sleep=off", "-kernel"])
+        .arg(&elf)
+        .arg("-device")
+        .arg(format!("loader,file={},addr=0x21000000", image.display()))
+        .arg("-serial")
+        .arg(format!("file:{}", uart.display()))
+        .stdout(std::process::Stdio::null())
+        .status()
+        .expect("QEMU runs");
+    assert_eq!(status.code(), Some(0), "the firmware's exit status");
+    let frames = std::fs::read(&uart).expect("the UART's bytes");
+    let mut decoder = DeviceFrameDecoder::new();
+    let messages: Vec<DeviceMsg> = decoder
+        .feed::<DeviceMsg>(&frames)
+        .map(|m| m.expect("a valid frame"))
+        .collect();
+    let last_model = messages.iter().rev().find_map(|m| match m {
+        DeviceMsg::Model(s) if s.cause == SnapshotCause::Final => Some(s),
+        _ => None,
+    });
+    let last_health = messages.iter().rev().find_map(|m| match m {
+        DeviceMsg::Health {
+            samples,
+            overruns,
+            sample_rate_hz,
+            ..
+        } => Some((*samples, *overruns, *sample_rate_hz)),
+        _ => None,
+    });
+    let (Some(got), Some((samples, overruns, rate))) = (last_model, last_health) else {
+        panic!("no final model and health in {} frames", messages.len());
+    };
+    println!("device: {samples} rows at {rate} Hz, {overruns} overruns; {got:?}");
+    assert_eq!(overruns, 0, "conversions lost");
+    assert_eq!(samples, rows.len() as u64, "rows");
+    assert!((f64::from(rate) - ROW_HZ).abs() < 1e-3, "row rate {rate}");
+    assert_eq!(got.terms, expected.terms);
+    for (i, (g, w)) in got
+        .coefficients
+        .iter()
+        .zip(&expected.coefficients)
+        .enumerate()
+    {
+        assert!(
+            (g - w).abs() <= 1e-5 * w.abs(),
+            "term {i}: {g} on the device, {w} on the host"
+        );
+    }
+
+    // Every true term of eveh (x, v, x^3, cos Ωt) is in the device's model.
+    use lssi_proto::TermKind;
+    let active: Vec<_> = got
+        .terms
+        .iter()
+        .zip(&got.coefficients)
+        .filter(|(_, c)| **c != 0.0)
+        .map(|(t, c)| (t.kind, t.a, t.b, *c))
+        .collect();
+    println!("device's active terms (kind, a, b, coefficient): {active:?}");
+    for (kind, a, b) in [
+        (TermKind::Monomial, 1, 0),
+        (TermKind::Monomial, 0, 1),
+        (TermKind::Monomial, 3, 0),
+        (TermKind::Cos, 1, 0),
+    ] {
+        assert!(
+            active.iter().any(|t| (t.0, t.1, t.2) == (kind, a, b)),
+            "{kind:?} {a} {b} missing: {active:?}"
+        );
+    }
+}

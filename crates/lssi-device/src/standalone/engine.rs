@@ -14,8 +14,10 @@ use lssi_proto::SnapshotCause;
 /// configured: `.bss`).
 pub struct Engine<const W: usize, const P: usize, const C: usize> {
     slot: IdentifierSlot<f32, W, P, C>,
-    /// The sampling period, s (a sample's time is its index times this).
+    /// The sampling period, s (a sample's time is its index times this, plus `offset`).
     period: f64,
+    /// The time of row 0, s (a decimator's delay: see `decimate`).
+    offset: f64,
     /// Configured since the snapshot was last filled: the snapshot's model is stale.
     fresh: bool,
     /// The recording ended; its final snapshot is still to be taken.
@@ -39,6 +41,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         Self {
             slot: IdentifierSlot::new(),
             period: 0.0,
+            offset: 0.0,
             fresh: false,
             final_pending: false,
             ended: false,
@@ -55,8 +58,19 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
 
     /// Configures the identifier in place (a refused configuration changes nothing).
     pub fn configure(&mut self, config: Config) -> Result<(), lssi_core::ConfigError> {
+        self.configure_at(config, 0.0)
+    }
+
+    /// Configures the identifier in place, row `i` at `i · sample_period + offset` seconds
+    /// (a decimator's rows: `Decimator::time_offset`).
+    pub fn configure_at(
+        &mut self,
+        config: Config,
+        offset: f64,
+    ) -> Result<(), lssi_core::ConfigError> {
         self.slot.configure(config)?;
         self.period = config.sample_period;
+        self.offset = offset;
         self.fresh = true;
         self.final_pending = false;
         self.ended = false;
@@ -77,9 +91,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         shared: &Shared<P>,
         clock: &K,
     ) {
-        if let Some(config) = critical_section::with(|cs| shared.pending.borrow(cs).take()) {
+        if let Some((config, offset)) =
+            critical_section::with(|cs| shared.pending.borrow(cs).take())
+        {
             // A refused configuration was checked by thread mode before it was requested.
-            let _ = self.configure(config);
+            let _ = self.configure_at(config, offset);
         }
         while let Some(event) = events.dequeue() {
             shared.counters.consumed.fetch_add(1, Ordering::Relaxed);
@@ -116,12 +132,13 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
 
     fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P>) {
         let period = self.period;
+        let offset = self.offset;
         let fresh = &mut self.fresh;
         let Some(id) = self.slot.get_mut() else {
             return;
         };
         let sample = Sample {
-            t: index as f64 * period,
+            t: index as f64 * period + offset,
             x: reading.x,
             v: reading.v,
             u: reading.u,

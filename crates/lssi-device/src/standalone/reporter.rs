@@ -1,6 +1,7 @@
 //! Thread mode's part: the screening, the reports and the host's commands.
 
 use super::{Clock, Shared};
+use crate::decimate::{Decimator, factor_for};
 use crate::{Transport, wire};
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
@@ -18,6 +19,12 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize> {
     latest: Option<ModelSnapshot>,
     config: Option<Config>,
     rate_hz: f32,
+    /// The ADC's conversion rate, Hz, and the CIC order rows are decimated with (0.0: no
+    /// decimation, every conversion a row).
+    adc_hz: f64,
+    order: u8,
+    /// The time of row 0 under the current decimation, s.
+    offset: f64,
     /// Clock ticks between reports (0: only on request).
     period_ticks: u32,
     last_report: u32,
@@ -44,6 +51,9 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             latest: None,
             config: Some(config),
             rate_hz,
+            adc_hz: 0.0,
+            order: 1,
+            offset: 0.0,
             period_ticks,
             last_report: 0,
             frames_ok: 0,
@@ -56,6 +66,17 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             finished: false,
             to_keep: None,
         }
+    }
+
+    /// Rows are decimated from an ADC converting at `adc_hz` by a CIC of `order`
+    /// ([`crate::decimate`]): a `Configure` then sets the row rate by its sample period,
+    /// which must be a whole number of conversions (1 to 255; otherwise `BadConfig`). The
+    /// board sets the decimation of its start-up configuration itself
+    /// ([`Decimator::time_offset`] is row 0's time).
+    pub fn set_adc(&mut self, adc_hz: f64, order: u8, offset: f64) {
+        self.adc_hz = adc_hz;
+        self.order = order;
+        self.offset = offset;
     }
 
     /// The configuration a host sent and this device accepted since the last call, for a
@@ -183,7 +204,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             HostMsg::Configure(wire_config) => self.configure(wire_config, shared, link),
             HostMsg::Reset => match self.config {
                 Some(config) => {
-                    shared.request_config(config);
+                    shared.request_config_at(config, self.offset);
                     self.latest = None;
                     self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
                 }
@@ -209,9 +230,30 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         link: &mut L,
     ) -> Result<(), L::Error> {
         let config = wire::config_from_wire(&wire_config);
+        let decimator = if self.adc_hz > 0.0 {
+            match factor_for(self.adc_hz, config.sample_period)
+                .and_then(|d| Decimator::new(d, self.order).ok())
+            {
+                Some(d) => Some(d),
+                None => {
+                    log!(
+                        warn,
+                        "Configure: a row period of {=f64} s is no whole number of ADC conversions",
+                        config.sample_period
+                    );
+                    return self.nak(link, CONTROL_SEQ, NakReason::BadConfig);
+                }
+            }
+        } else {
+            None
+        };
         match config.validate::<W, P, C>() {
             Ok(()) => {
-                shared.request_config(config);
+                if let Some(d) = decimator {
+                    self.offset = d.time_offset(self.adc_hz);
+                    shared.request_decimator(d);
+                }
+                shared.request_config_at(config, self.offset);
                 self.config = Some(config);
                 self.to_keep = Some(wire_config);
                 self.rate_hz = (1.0 / config.sample_period) as f32;

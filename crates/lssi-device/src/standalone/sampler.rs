@@ -1,6 +1,7 @@
 //! The sampling interrupt's part.
 
-use super::{Counters, Event, Reading};
+use super::{Counters, Event, Reading, Shared};
+use crate::decimate::Decimator;
 use core::sync::atomic::Ordering;
 use heapless::spsc::Producer;
 
@@ -11,9 +12,15 @@ use heapless::spsc::Producer;
 /// a turning point, and sensor noise moves the last bit far more often.
 pub const STUCK_RUN: u32 = 256;
 
-/// The sampling interrupt's part: queues each reading with its index and stamp.
+/// The sampling interrupt's part: decimates the ADC's conversions to rows and queues each
+/// row with its index and stamp.
 pub struct Sampler<'q> {
     producer: Producer<'q, Event>,
+    /// Conversions to rows (factor 1: every conversion is a row).
+    decimator: Decimator,
+    /// Conversions taken.
+    conversions: u64,
+    /// Rows made (queued or lost).
     next: u64,
     ended: bool,
     /// The last displacement reading's bits and how many times in a row it came.
@@ -26,6 +33,8 @@ impl<'q> Sampler<'q> {
     pub fn new(producer: Producer<'q, Event>) -> Self {
         Self {
             producer,
+            decimator: Decimator::none(),
+            conversions: 0,
             next: 0,
             ended: false,
             last_x: 0,
@@ -33,13 +42,39 @@ impl<'q> Sampler<'q> {
         }
     }
 
-    /// One timer interrupt's sample. A full queue loses it, counted in `overruns`: its
-    /// index is used all the same, so the next sample's time stays the timer's. A reading
+    /// Decimates by `decimator` from the next conversion on (the rows in progress dropped).
+    pub fn set_decimator(&mut self, decimator: Decimator) {
+        self.decimator = decimator;
+        self.decimator.restart();
+    }
+
+    /// The decimator in use.
+    pub fn decimator(&self) -> &Decimator {
+        &self.decimator
+    }
+
+    /// One timer interrupt's conversion, with the decimator thread mode asked for (if
+    /// any) put in first: see [`Sampler::tick`].
+    pub fn convert<const P: usize>(
+        &mut self,
+        stamp: u32,
+        reading: Reading,
+        shared: &Shared<P>,
+    ) -> bool {
+        if let Some(decimator) = shared.take_decimator() {
+            self.set_decimator(decimator);
+        }
+        self.tick(stamp, reading, &shared.counters)
+    }
+
+    /// One timer interrupt's conversion: into the decimator, and when it completes a row,
+    /// the row into the queue. A full queue loses the row, counted in `overruns`: its
+    /// index is used all the same, so the next row's time stays the timer's. A reading
     /// that repeats the last one more than [`STUCK_RUN`] times goes on as NaN (counted in
-    /// `stuck`).
-    pub fn tick(&mut self, stamp: u32, mut reading: Reading, counters: &Counters) {
-        let index = self.next;
-        self.next += 1;
+    /// `stuck`). Returns whether a row was made (queued or lost): the board wakes the
+    /// identify task only then.
+    pub fn tick(&mut self, stamp: u32, mut reading: Reading, counters: &Counters) -> bool {
+        self.conversions += 1;
         let bits = reading.x.to_bits();
         if bits == self.last_x {
             self.run = self.run.saturating_add(1);
@@ -51,6 +86,21 @@ impl<'q> Sampler<'q> {
             reading.x = f32::NAN;
             counters.stuck.fetch_add(1, Ordering::Relaxed);
         }
+        let values = [
+            reading.x,
+            reading.v.unwrap_or(0.0),
+            reading.u.unwrap_or(0.0),
+        ];
+        let Some([x, v, u]) = self.decimator.push(values) else {
+            return false;
+        };
+        let reading = Reading {
+            x,
+            v: reading.v.map(|_| v),
+            u: reading.u.map(|_| u),
+        };
+        let index = self.next;
+        self.next += 1;
         let event = Event::Sample {
             index,
             stamp,
@@ -62,6 +112,7 @@ impl<'q> Sampler<'q> {
             let len = u32::try_from(self.producer.len()).unwrap_or(u32::MAX);
             counters.queue_high_water.fetch_max(len, Ordering::Relaxed);
         }
+        true
     }
 
     /// The sensor has no more samples: queues the end once (false while the queue is full;
@@ -73,8 +124,13 @@ impl<'q> Sampler<'q> {
         self.ended
     }
 
-    /// Samples taken so far (queued or lost).
+    /// Rows made so far (queued or lost).
     pub fn taken(&self) -> u64 {
         self.next
+    }
+
+    /// ADC conversions taken so far.
+    pub fn conversions(&self) -> u64 {
+        self.conversions
     }
 }

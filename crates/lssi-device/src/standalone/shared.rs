@@ -3,6 +3,7 @@
 
 #[cfg(doc)]
 use super::STUCK_RUN;
+use crate::decimate::Decimator;
 use core::cell::Cell;
 use core::sync::atomic::AtomicU32;
 use critical_section::Mutex;
@@ -78,8 +79,11 @@ pub struct Shared<const P: usize> {
     pub(super) free: Mutex<Cell<Option<&'static mut Snapshot<f32, P>>>>,
     /// The snapshot waiting for (or under) its screening, with why it was taken.
     pub(super) full: Mutex<Cell<Option<Taken<P>>>>,
-    /// A configuration for the identify task to apply before its next sample.
-    pub(super) pending: Mutex<Cell<Option<Config>>>,
+    /// A configuration for the identify task to apply before its next sample, with the
+    /// time of row 0 (the decimator's delay).
+    pub(super) pending: Mutex<Cell<Option<(Config, f64)>>>,
+    /// A decimator for the sampling interrupt to put in before its next conversion.
+    pub(super) decimator: Mutex<Cell<Option<Decimator>>>,
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     pub(super) status: Mutex<Cell<Status>>,
 }
@@ -124,6 +128,7 @@ impl<const P: usize> Shared<P> {
             free: Mutex::new(Cell::new(None)),
             full: Mutex::new(Cell::new(None)),
             pending: Mutex::new(Cell::new(None)),
+            decimator: Mutex::new(Cell::new(None)),
             status: Mutex::new(Cell::new(Status {
                 samples: 0,
                 rejected: 0,
@@ -144,7 +149,22 @@ impl<const P: usize> Shared<P> {
 
     /// Asks the identify task to configure the identifier anew before its next sample.
     pub fn request_config(&self, config: Config) {
-        critical_section::with(|cs| self.pending.borrow(cs).set(Some(config)));
+        self.request_config_at(config, 0.0);
+    }
+
+    /// Asks the identify task to configure the identifier anew before its next sample,
+    /// row `i` at time `i · sample_period + offset` seconds.
+    pub fn request_config_at(&self, config: Config, offset: f64) {
+        critical_section::with(|cs| self.pending.borrow(cs).set(Some((config, offset))));
+    }
+
+    /// Asks the sampling interrupt to decimate by `decimator` from its next conversion.
+    pub fn request_decimator(&self, decimator: Decimator) {
+        critical_section::with(|cs| self.decimator.borrow(cs).set(Some(decimator)));
+    }
+
+    pub(super) fn take_decimator(&self) -> Option<Decimator> {
+        critical_section::with(|cs| self.decimator.borrow(cs).take())
     }
 
     /// Whether a snapshot waits for its screening (thread mode has work: do not sleep).

@@ -4,7 +4,7 @@
 use lssi_core::{Config, Identifier, Sample, Snapshot};
 use lssi_device::Transport;
 use lssi_device::standalone::{
-    Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
+    Clock, Engine, Event, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use lssi_proto::{DeviceFrameDecoder, DeviceMsg, HostMsg, SnapshotCause, encode};
 use std::cell::Cell;
@@ -278,4 +278,93 @@ fn an_accepted_configuration_is_handed_over_once_to_keep() {
     ));
     assert_eq!(reporter.take_accepted(), Some(sent));
     assert_eq!(reporter.take_accepted(), None);
+}
+
+/// A decimating sampler: one row every D conversions (after the CIC's warm-up), the row
+/// the decimator's own, queued with consecutive indices; the identify task wakes for rows
+/// only (`tick` says when).
+#[test]
+fn a_decimating_sampler_queues_one_row_every_factor_conversions() {
+    use lssi_device::decimate::Decimator;
+    let counters = Shared::<P>::new();
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, mut consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let mut reference = Decimator::new(5, 3).expect("valid");
+    sampler.set_decimator(reference);
+    let mut rows = Vec::new();
+    let mut woken = 0;
+    for i in 0..300u32 {
+        let x = signal(i);
+        if sampler.tick(
+            i,
+            Reading {
+                x,
+                v: None,
+                u: None,
+            },
+            &counters.counters,
+        ) {
+            woken += 1;
+        }
+        if let Some(row) = reference.push([x, 0.0, 0.0]) {
+            rows.push(row[0]);
+        }
+        while let Some(event) = consumer.dequeue() {
+            let Event::Sample { index, reading, .. } = event else {
+                panic!("no end yet");
+            };
+            assert_eq!(reading.x, rows[index as usize], "row {index}");
+        }
+    }
+    // 60 blocks of 5, the first two fill the order-3 kernel.
+    assert_eq!(rows.len(), 58);
+    assert_eq!(woken, 58);
+    assert_eq!(sampler.taken(), 58);
+    assert_eq!(sampler.conversions(), 300);
+}
+
+/// With an ADC rate set, a `Configure` whose row period is no whole number of conversions
+/// is refused (`BadConfig`) and one that is gets the decimator to the sampling interrupt.
+#[test]
+fn a_configure_sets_the_decimation_by_its_row_period() {
+    let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config(), 100.0, 0);
+    reporter.set_adc(1000.0, 3, 0.0);
+    let mut wire = Wire::default();
+    for (period, accepted) in [
+        (0.0035, false),
+        (0.0031, false),
+        (0.003, true),
+        (0.01, true),
+        (0.5, false),
+    ] {
+        wire.0.clear();
+        let sent = lssi_device::wire::config_to_wire(&Config {
+            sample_period: period,
+            ..config()
+        })
+        .expect("encodable");
+        let mut frame = [0u8; 512];
+        let len = encode(&HostMsg::Configure(sent), &mut frame).expect("fits");
+        let Ok(()) = reporter.receive::<_, FakeClock>(&frame[..len], shared, &mut wire);
+        let reply = decode(&wire.0);
+        if accepted {
+            assert!(
+                matches!(reply[..], [DeviceMsg::Ack { .. }]),
+                "{period}: {reply:?}"
+            );
+        } else {
+            assert!(
+                matches!(
+                    reply[..],
+                    [DeviceMsg::Nak {
+                        reason: lssi_proto::NakReason::BadConfig,
+                        ..
+                    }]
+                ),
+                "{period}: {reply:?}"
+            );
+        }
+    }
 }
