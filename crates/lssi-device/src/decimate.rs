@@ -192,10 +192,18 @@ impl Decimator {
     /// this conversion completes one. A NaN input makes the rows it weighs in NaN (the
     /// identifier rejects them as a gap).
     pub fn push(&mut self, values: [f32; 3]) -> Option<[f32; 3]> {
+        self.push_channels(values, 3)
+    }
+
+    /// [`Decimator::push`] of the first `channels` (1–3) values only: the others come out
+    /// as 0.0 (an ADC with x only pays for x only).
+    #[inline]
+    pub fn push_channels(&mut self, values: [f32; 3], channels: usize) -> Option<[f32; 3]> {
         let w = self.weights(self.phase);
         let order = usize::from(self.order);
+        let channels = channels.min(3);
         for (acc, &wk) in self.acc.iter_mut().zip(&w).take(order) {
-            for (a, &v) in acc.iter_mut().zip(&values) {
+            for (a, &v) in acc.iter_mut().zip(&values).take(channels) {
                 *a += wk * v;
             }
         }

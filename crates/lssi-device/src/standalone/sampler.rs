@@ -86,19 +86,23 @@ impl<'q> Sampler<'q> {
             reading.x = f32::NAN;
             counters.stuck.fetch_add(1, Ordering::Relaxed);
         }
-        let values = [
-            reading.x,
-            reading.v.unwrap_or(0.0),
-            reading.u.unwrap_or(0.0),
-        ];
-        let Some([x, v, u]) = self.decimator.push(values) else {
+        // x, then v and u packed after it when present (1 to 3 channels accumulated).
+        let (values, channels) = match (reading.v, reading.u) {
+            (None, None) => ([reading.x, 0.0, 0.0], 1),
+            (Some(v), None) => ([reading.x, v, 0.0], 2),
+            (None, Some(u)) => ([reading.x, u, 0.0], 2),
+            (Some(v), Some(u)) => ([reading.x, v, u], 3),
+        };
+        let Some(row) = self.decimator.push_channels(values, channels) else {
             return false;
         };
-        let reading = Reading {
-            x,
-            v: reading.v.map(|_| v),
-            u: reading.u.map(|_| u),
+        let (x, v, u) = match (reading.v, reading.u) {
+            (None, None) => (row[0], None, None),
+            (Some(_), None) => (row[0], Some(row[1]), None),
+            (None, Some(_)) => (row[0], None, Some(row[1])),
+            (Some(_), Some(_)) => (row[0], Some(row[1]), Some(row[2])),
         };
+        let reading = Reading { x, v, u };
         let index = self.next;
         self.next += 1;
         let event = Event::Sample {
