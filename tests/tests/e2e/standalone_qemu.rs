@@ -216,10 +216,10 @@ fn standalone_device_decimates_10_khz_to_200_hz_rows_and_ends_with_the_identifie
         .arg(format!("loader,file={},addr=0x21000000", image.display()))
         .arg("-serial")
         .arg(format!("file:{}", uart.display()))
-        .stdout(std::process::Stdio::null())
-        .status()
+        .output()
         .expect("QEMU runs");
-    assert_eq!(status.code(), Some(0), "the firmware's exit status");
+    assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
+    print_log(&elf, &status.stdout, dir.path());
     let frames = std::fs::read(&uart).expect("the UART's bytes");
     let mut decoder = DeviceFrameDecoder::new();
     let messages: Vec<DeviceMsg> = decoder
@@ -311,16 +311,34 @@ fn run_standalone(
         .arg(format!("loader,file={},addr=0x21000000", image.display()))
         .arg("-serial")
         .arg(format!("file:{}", uart.display()))
-        .stdout(std::process::Stdio::null())
-        .status()
+        .output()
         .expect("QEMU runs");
-    assert_eq!(status.code(), Some(0), "the firmware's exit status");
+    assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
+    print_log(&elf, &status.stdout, dir);
     let frames = std::fs::read(&uart).expect("the UART's bytes");
     let mut decoder = DeviceFrameDecoder::new();
     decoder
         .feed::<DeviceMsg>(&frames)
         .map(|m| m.expect("a valid frame"))
         .collect()
+}
+
+/// Prints the firmware's defmt log (its semihosting output), decoded by `defmt-print` when
+/// that is installed (scripts/ci-qemu.sh installs it); nothing otherwise.
+fn print_log(elf: &Path, defmt: &[u8], dir: &Path) {
+    let raw = dir.join("defmt.bin");
+    std::fs::write(&raw, defmt).expect("write the log");
+    let Ok(file) = std::fs::File::open(&raw) else {
+        return;
+    };
+    if let Ok(out) = std::process::Command::new("defmt-print")
+        .arg("-e")
+        .arg(elf)
+        .stdin(file)
+        .output()
+    {
+        println!("{}", String::from_utf8_lossy(&out.stdout));
+    }
 }
 
 /// The duty-cycled device under QEMU: 10 kHz conversions decimated to 200 Hz rows, windows

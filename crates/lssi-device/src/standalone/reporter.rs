@@ -171,6 +171,11 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         shared.request_schedule(schedule);
     }
 
+    /// The most clock ticks one screening took.
+    pub fn screen_cost_max(&self) -> u32 {
+        self.screen_cost_max
+    }
+
     /// How the model moved between the last two windows of the duty cycle (after each
     /// window's report; `None` before the first or without a duty cycle).
     pub fn drift(&self) -> Option<Drift> {

@@ -67,6 +67,12 @@ static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCel
 static TX_IDLE: AtomicBool = AtomicBool::new(true);
 /// Received bytes lost (ring full or UART overrun).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
+/// The longest the core stayed awake between two `wfi`s, clock ticks (the interrupts taken
+/// in between included): the longest wake-up, what a harvester's storage capacitor must
+/// carry at run current.
+static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
+/// `wfi`s executed (wake-ups).
+static SLEEPS: AtomicU32 = AtomicU32::new(0);
 
 /// The row rate of the image's own configuration, Hz: about 60 rows a forcing period of
 /// a harvester forced at 3.4 Hz (eveh, Ω = 21.4 rad/s), 10 a period at 20 Hz. The ADC
@@ -243,6 +249,7 @@ fn main() -> ! {
     mps2::uart_interrupts_on();
     mps2::start_sampling(mps2::sampling_reload(rate));
     let mut windows_logged = 0;
+    let mut woke = BoardClock.now();
 
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
@@ -269,7 +276,13 @@ fn main() -> ! {
             // interrupt in between still wakes the `wfi` (it is taken right after).
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
+                    let awake = BoardClock.now().wrapping_sub(woke);
+                    AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
+                    SLEEPS.fetch_add(1, Ordering::Relaxed);
                     cortex_m::asm::wfi();
+                    // The interrupt that woke the core runs after this critical section:
+                    // it counts in the next wake-up.
+                    woke = BoardClock.now();
                 }
             });
         }
@@ -292,6 +305,13 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
         c.screenings_skipped.load(Ordering::Relaxed),
         reporter.frames_sent,
         RX_LOST.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "wake-ups: {=u32}, the longest {=u32} ticks awake (2.5 instructions a tick under -icount shift=4), the worst row {=u32} ticks, the worst screening {=u32} ticks",
+        SLEEPS.load(Ordering::Relaxed),
+        AWAKE_MAX.load(Ordering::Relaxed),
+        status.cost_max,
+        reporter.screen_cost_max()
     );
     platform::exit(platform::EXIT_SUCCESS)
 }
