@@ -264,6 +264,119 @@ echo
 echo "Harvesters make 0.1-10 mW; the power is proportional to the rate (harvesters ring at 3-50 Hz)."
 echo "scripts/lowest-rate.sh: the lowest rate that still identifies data/eveh-bistable.csv within 1 %."
 
+# Average power of a device identifying the eveh harvester (Ω = 21.4 rad/s, 3.41 Hz) at its
+# proposed row rate, 200 rows a second (59 a forcing period), continuously and duty-cycled
+# (a 10 s window every 10 minutes, Stop between windows), from the instructions measured
+# above and datasheet currents. Every constant and where it comes from:
+#
+#   V            3.3 V supply (both parts run from 1.7-3.6 V; the currents below are typical,
+#                25 °C, at 3.3 V where the document gives a choice).
+#   cycles       one cycle an executed instruction (QEMU counts instructions; flash wait
+#                states, loads and VDIV/VSQRT make the real count higher: a floor).
+#   row          instructions a row: bench-weak's "mean without the screening" (a row every
+#                sample, test-function rows, window 33: the configuration `lssi identify`
+#                sends, on eq. 17) - the proxy for eveh's configuration at 200 Hz.
+#   screening    bench-weak's mean screening; one a minute continuously, one a window
+#                duty-cycled (at the window's end, before the Model and Health frames).
+#   conversion   the F4's software decimation: bench-profile's `sampler_conversion` (the
+#                standalone Sampler with a CIC of order 3, 50 conversions a row, as TIM2's
+#                interrupt calls it) + 24 cycles of exception entry and exit (ARM Cortex-M4
+#                Technical Reference Manual r0p1, 3.9 "Exceptions": 12-cycle entry latency,
+#                12-cycle return with the FPU context not stacked).
+#   STM32F411 (DS10314 "STM32F411xC STM32F411xE" datasheet; the revision on st.com):
+#     run        100 µA/MHz: title page, "Power consumption: Run: 100 µA/MHz (peripheral off)".
+#     sleep      1000 µA at fHCLK = 16 MHz (HSI, PLL off) with TIM2 and ADC1 clocked: order of
+#                magnitude read from table "Typical and maximum current
+#                consumption in Sleep mode" - CHECK against the table before quoting.
+#                The F4 has no lower mode in which a timer and the ADC run: it sleeps (WFI)
+#                between conversions.
+#     adc        1600 µA while the ADC is on (the HAL image keeps ADON set): table "ADC characteristics", IDDA (VDDA current) typ - CHECK.
+#     stop       9 µA between windows: title page, "Stop (Flash in Deep power down mode, slow
+#                wakeup time): down to 9 µA @ 25 °C" (+ RTC for the wake-up: title page,
+#                "VBAT supply for RTC: 1 µA @25 °C") = 10 µA.
+#     wake       100 µs from Stop (flash in deep power-down) at run current: table "Low-power mode wakeup timings" - CHECK.
+#     clock      16 MHz HSI, PLL off (what the harvester's load needs, see the cycles below).
+#   STM32L432 (DS11451 "STM32L432KB STM32L432KC" datasheet; the revision on st.com):
+#     run        84 µA/MHz: title page, "84 µA/MHz run mode" (LDO).
+#     stop2      1.28 µA: title page, "1.0 µA Stop 2 mode, 1.28 µA with RTC" (the RTC or
+#                LPTIM1 wakes it).
+#     wake       4 µs from Stop: title page, "4 µs wakeup from Stop mode".
+#     adc        200 µA/Msps: title page, "1x 12-bit ADC 5 Msps, up to 16-bit with hardware
+#                oversampling, 200 µA/Msps".
+#     adcvreg    20 µs of the ADC's voltage regulator start-up after each Stop 2: table "ADC characteristics", tADCVREG_STUP - CHECK.
+#     lpsleep    60 µA in Low-power sleep at 2 MHz (MSI), the ADC and a timer clocked:
+#                table "Current consumption in Low-power sleep modes" - CHECK.
+#   The L432's path: LPTIM1 wakes it from Stop 2 at 200 Hz; the ADC converts a burst of 64 at
+#   1 Msps averaged by its hardware oversampler (ADC_CFGR2 OVSR = 64, a power of two) into
+#   one row; the core computes the row at 16 MHz and returns to Stop 2. The ADC cannot run in
+#   Stop 2, so the burst averages noise but does not band-limit: the front end's RC filter
+#   must do that below 100 Hz. The alternative that decimates for anti-aliasing (12.8 kHz
+#   conversions spread over the row, the core in Low-power sleep) is the table's last row.
+conv_cost=$(field "$prof" sampler_conversion mean)
+dec_cost=$(field "$prof" decimate_conversion mean)
+if [[ -z $conv_cost || -z $dec_cost ]]; then
+    cat "$prof" >&2
+    echo "firmware-bench: no decimation figures in the bench-profile image's output" >&2
+    exit 1
+fi
+echo
+echo "Average power, eveh (3.41 Hz forcing) at 200 rows/s; 10 s windows every 10 min duty-cycled"
+echo "(instructions: $weak_steady a row, $weak_screen_mean a screening, $conv_cost a conversion"
+echo "through the F4's CIC-3 decimator of which $dec_cost the filter; constants and sources in the script)"
+echo
+awk -v row="$weak_steady" -v scr="$weak_screen_mean" -v conv="$conv_cost" '
+function out(label, cont, duty) {
+    printf "| %-58s | %10.0f | %10.1f |\n", label, cont, duty
+}
+function part(label, cont) {
+    printf "| %-58s | %10.0f | %10s |\n", label, cont, ""
+}
+BEGIN {
+    V = 3.3; R = 200; W = 10; T = 600; S = 60
+    # STM32F411: 10 kHz conversions, an interrupt each (CIC 3, D = 50), Sleep in between.
+    A = 10000; isr = 24; f = 16e6
+    k = 100; sleep = 1000; adc = 1600; stop = 10; wake = 100e-6
+    rows = R * row + A * (conv + isr)              # cycles/s while sampling, no screening
+    cont_f = V * (k * (rows + scr / S) / 1e6 + sleep * (1 - (rows + scr / S) / f) + adc)
+    win = V * (k * (W * rows + scr) / 1e6 + sleep * W + adc * W) + V * k * (f / 1e6) * wake
+    duty_f = win / T + V * stop * (T - W) / T
+    # STM32L432: Stop 2 between rows, a burst of 64 conversions at 1 Msps a row.
+    k4 = 84; f4 = 16e6; stop2 = 1.28; wake4 = 4e-6; adcvreg = 20e-6; burst = 64e-6
+    adc_q = 200 * 1e6 * burst / 1e6                # µA·s a row: 200 µA/Msps at 1 Msps
+    per_row = row + (wake4 + adcvreg + burst) * f4 # cycles a row, the core awake throughout
+    cont_l = V * (k4 * (R * per_row + scr / S) / 1e6 + R * adc_q + stop2)
+    win_l = V * (k4 * (W * R * per_row + scr) / 1e6 + W * R * adc_q)
+    duty_l = win_l / T + V * stop2 * (T - W) / T
+    # STM32L432, anti-aliasing by decimation: 12.8 kHz conversions, oversampler OVSR 64, the
+    # core in Low-power sleep at 2 MHz between rows (an interrupt a row).
+    lps = 60; A4 = 12800
+    cont_a = V * (k4 * (R * row + scr / S) / 1e6 + lps + 200 * A4 / 1e6)
+    win_a = V * (k4 * (W * R * row + scr) / 1e6 + (lps + 200 * A4 / 1e6) * W)
+    duty_a = win_a / T + V * stop2 * (T - W) / T
+    printf "| %-58s | %10s | %10s |\n", "part and path", "µW cont.", "µW duty"
+    printf "|%s|%s|%s|\n", "------------------------------------------------------------", "------------", "------------"
+    out("STM32F411, 16 MHz, TIM2+ADC1 10 kHz, CIC-3 in the ISR, WFI", cont_f, duty_f)
+    part("  of which the ADC, left on", V * adc)
+    part("  of which Sleep between conversions", V * sleep * (1 - (rows + scr / S) / f))
+    part("  of which the conversions through the decimator", V * k * A * (conv + isr) / 1e6)
+    part("  of which the rows and a screening a minute", V * k * (R * row + scr / S) / 1e6)
+    out("STM32L432, Stop 2 between rows, oversampled 64-burst", cont_l, duty_l)
+    part("  of which the rows and a screening a minute", V * k4 * (R * row + scr / S) / 1e6)
+    part("  of which awake for the wake-up, ADC start and burst", V * k4 * R * (per_row - row) / 1e6)
+    part("  of which the ADC conversions", V * R * adc_q)
+    part("  of which Stop 2 between rows", V * stop2)
+    printf "| %-58s | %10s | %10.1f |\n", "  duty-cycled: the rows of a window", "", V * k4 * W * R * per_row / 1e6 / T
+    printf "| %-58s | %10s | %10.1f |\n", "  duty-cycled: the screening of a window", "", V * k4 * scr / 1e6 / T
+    printf "| %-58s | %10s | %10.1f |\n", "  duty-cycled: Stop 2 between windows", "", V * stop2 * (T - W) / T
+    out("STM32L432, 12.8 kHz spread, oversampler, LP sleep 2 MHz", cont_a, duty_a)
+    printf "\n"
+    printf "average power: eveh at 200 rows/s (59 a forcing period): STM32F411 %.0f µW continuous, %.1f µW duty-cycled (10 s every 10 min); STM32L432 %.0f µW continuous (goal <= 250: %s), %.1f µW duty-cycled (goal <= 10: %s)\n", cont_f, duty_f, cont_l, (cont_l <= 250 ? "met" : "NOT met"), duty_l, (duty_l <= 10 ? "met" : "NOT met")
+    printf "  per day: STM32F411 %.2f J / %.3f J, STM32L432 %.2f J / %.3f J (continuous / duty-cycled)\n", cont_f * 86400e-6, duty_f * 86400e-6, cont_l * 86400e-6, duty_l * 86400e-6
+}'
+echo "Continuously the identifier's own instructions dominate on the L432 (rows and a screening a"
+echo "minute); duty-cycled, the window's screening and Stop 2. Constants marked CHECK in the script"
+echo "are read from the datasheets' tables as orders of magnitude, the others from their title pages."
+
 echo
 echo "What the device image's flash holds (scripts/flash-breakdown.sh):"
 echo

@@ -112,6 +112,7 @@ macro_rules! log {
 }
 
 mod commands;
+pub mod decimate;
 mod device;
 mod platform;
 mod replies;

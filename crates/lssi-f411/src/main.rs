@@ -10,7 +10,7 @@
 //!
 //! | context | priority | does |
 //! |---|---|---|
-//! | TIM2 update | 0x00 | one ADC conversion → the 64-place queue; pends EXTI1 |
+//! | TIM2 update | 0x00 | one ADC conversion → the decimator; a row (every 50) → the 64-place queue, pends EXTI1 |
 //! | USART1 | 0x40 | RX bytes into a ring; TX ring out on TXE |
 //! | EXTI1 (pended) | 0x80 | queue → identifier rows; the snapshot at a screening point |
 //! | thread mode | lowest | screening on the snapshot, frames, host commands, `wfi` |
@@ -32,6 +32,7 @@ use defmt_rtt as _;
 use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Snapshot};
 use lssi_device::Transport;
+use lssi_device::decimate::{self, Decimator};
 use lssi_device::standalone::{
     Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
@@ -57,8 +58,14 @@ const P: usize = 16;
 const C: usize = 1;
 /// The core clock (the DWT cycle counter counts it).
 const CORE_HZ: u32 = 96_000_000;
-/// The sampling rate of the image's configuration.
+/// The ADC's conversion rate (TIM2): what the anti-alias filter in front of PA0 needs.
 const RATE_HZ: u32 = 10_000;
+/// The row rate of the image's configuration: the conversions are decimated by
+/// `RATE_HZ / ROW_HZ` = 50 (a CIC of order [`CIC_ORDER`], lssi_device::decimate), about 60
+/// rows a forcing period of a harvester forced at 3.4 Hz.
+const ROW_HZ: u32 = 200;
+/// The decimator's CIC order.
+const CIC_ORDER: u8 = 3;
 /// The ADC's reference, volts, and its full scale.
 const VREF: f32 = 3.3;
 const FULL_SCALE: f32 = 4095.0;
@@ -98,13 +105,23 @@ impl Clock for BoardClock {
     }
 }
 
-/// The image's configuration: lssi-core's defaults at 10 kHz, x only, a screening a second.
+/// The image's configuration: rows at [`ROW_HZ`], x only, a derivative window of a tenth
+/// of a second, a row every sample, a screening a second; lssi-core's defaults otherwise.
 fn default_config() -> Config {
     Config {
-        sample_period: 1.0 / RATE_HZ as f64,
-        screening_period: RATE_HZ,
+        sample_period: 1.0 / ROW_HZ as f64,
+        window: (ROW_HZ / 10) as usize | 1,
+        row_stride: 1,
+        screening_period: ROW_HZ,
         ..Config::default()
     }
+}
+
+/// The decimator from [`RATE_HZ`] conversions to `config`'s rows, if its row period is a
+/// whole number (1 to 255) of conversions.
+fn decimator_for(config: &Config) -> Option<Decimator> {
+    let d = decimate::factor_for(f64::from(RATE_HZ), config.sample_period)?;
+    Decimator::new(d, CIC_ORDER).ok()
 }
 
 #[entry]
@@ -128,26 +145,46 @@ fn main() -> ! {
         defmt::panic!("start-up ran twice")
     };
     let mut flash = LockedFlash::new(dp.FLASH);
-    let mut config = match store::load(&flash) {
+    let (mut config, duty) = match store::load(&flash) {
         Ok(stored) => stored,
         Err(why) => {
             defmt::info!("no stored configuration ({}): the image's", why);
-            default_config()
+            (default_config(), None)
         }
     };
-    if let Err(e) = engine.configure(config) {
-        defmt::warn!(
-            "the stored configuration is refused ({}): the image's",
-            defmt::Debug2Format(&e)
-        );
-        config = default_config();
-        if let Err(e) = engine.configure(config) {
-            defmt::panic!(
-                "the image's configuration is refused: {}",
-                defmt::Debug2Format(&e)
-            );
+    let configured = match decimator_for(&config) {
+        Some(d) => engine
+            .configure_at(config, d.time_offset(f64::from(RATE_HZ)))
+            .map(|()| d)
+            .map_err(|e| {
+                defmt::warn!(
+                    "the stored configuration is refused ({})",
+                    defmt::Debug2Format(&e)
+                )
+            }),
+        None => {
+            defmt::warn!("the stored row period is no whole number of conversions");
+            Err(())
         }
-    }
+    };
+    let configured_from_store = configured.is_ok();
+    let decimator = match configured {
+        Ok(d) => d,
+        Err(()) => {
+            defmt::warn!("using the image's configuration");
+            config = default_config();
+            let Some(d) = decimator_for(&config) else {
+                defmt::panic!("the image's row rate is no whole number of conversions")
+            };
+            if let Err(e) = engine.configure_at(config, d.time_offset(f64::from(RATE_HZ))) {
+                defmt::panic!(
+                    "the image's configuration is refused: {}",
+                    defmt::Debug2Format(&e)
+                );
+            }
+            d
+        }
+    };
     SHARED.give_snapshot(snapshot);
     let (producer, consumer) = queue.split();
     IDENTIFY.give(engine, consumer);
@@ -171,12 +208,14 @@ fn main() -> ! {
     }
     timer.listen(TimerEvent::Update);
 
+    let mut sampler = Sampler::new(producer);
+    sampler.set_decimator(decimator);
     critical_section::with(|cs| {
         SENSOR.borrow_ref_mut(cs).replace(Sensor {
             timer,
             adc,
             pin,
-            sampler: Sampler::new(producer),
+            sampler,
         });
         UART.borrow_ref_mut(cs).replace(Uart {
             tx,
@@ -186,10 +225,20 @@ fn main() -> ! {
         });
     });
     defmt::info!(
-        "lssi on STM32F411: {=u32} Hz on PA0, frames on USART1",
-        RATE_HZ
+        "lssi on STM32F411: {=u32} Hz on PA0 decimated by {=u32} to rows, frames on USART1",
+        RATE_HZ,
+        decimator.factor()
     );
-    let mut reporter: Reporter<W, P, C> = Reporter::new(config, RATE_HZ as f32, CORE_HZ);
+    let mut reporter: Reporter<W, P, C> =
+        Reporter::new(config, (1.0 / config.sample_period) as f32, CORE_HZ);
+    reporter.set_adc(
+        f64::from(RATE_HZ),
+        CIC_ORDER,
+        decimator.time_offset(f64::from(RATE_HZ)),
+    );
+    // The stored duty cycle, if any (a stored configuration refused above leaves the
+    // image's, which has none).
+    reporter.set_duty(if configured_from_store { duty } else { None }, &SHARED);
     let mut link = Link { tx: tx_in };
 
     #[allow(unsafe_code)]
@@ -273,9 +322,20 @@ impl Transport for Link {
 #[interrupt]
 fn TIM2() {
     let stamp = BoardClock.now();
-    critical_section::with(|cs| {
+    let row = critical_section::with(|cs| {
         if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
             let _ = sensor.timer.wait();
+            // Between the windows of a duty cycle no conversion is made: the sampler only
+            // counts the time. (A board for the field would stop TIM2 and the ADC and wake
+            // by the RTC instead: the F4 keeps its timer and ADC only out of Stop.)
+            if !sensor.sampler.sampling() {
+                let idle = Reading {
+                    x: f32::NAN,
+                    v: None,
+                    u: None,
+                };
+                return sensor.sampler.convert(stamp, idle, &SHARED);
+            }
             let code = sensor.adc.convert(&sensor.pin, SampleTime::Cycles_56);
             // A reading at either rail is saturated: passed on as NaN, which the identifier
             // counts as rejected and skips like a gap (sampling goes on).
@@ -289,10 +349,15 @@ fn TIM2() {
                 v: None,
                 u: None,
             };
-            sensor.sampler.tick(stamp, reading, &SHARED.counters);
+            sensor.sampler.convert(stamp, reading, &SHARED)
+        } else {
+            false
         }
     });
-    NVIC::pend(Interrupt::EXTI1);
+    // The identify task wakes once a row, not once a conversion.
+    if row {
+        NVIC::pend(Interrupt::EXTI1);
+    }
 }
 
 #[interrupt]

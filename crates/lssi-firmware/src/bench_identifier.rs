@@ -525,6 +525,55 @@ fn profile(meter: &mut Meter) {
 #[cfg(not(all(feature = "bench-profile", not(feature = "bench-baseline"))))]
 fn profile(_meter: &mut Meter) {}
 
+/// Times one ADC conversion through the standalone device's decimator (a CIC of order 3,
+/// 50 conversions a row, x only: the F4's software path from 10 kHz to 200 Hz rows), and
+/// through the standalone sampler as the timer interrupt calls it (decimator, stuck-sensor
+/// check and, once a row, the queue).
+#[cfg(all(feature = "bench-profile", not(feature = "bench-baseline")))]
+fn decimation(meter: &mut Meter) {
+    use lssi_device::decimate::Decimator;
+    use lssi_device::standalone::{Counters, Event, EventQueue, Reading, Sampler, Shared};
+
+    const CONVERSIONS: u32 = 5_000;
+    let Ok(mut decimator) = Decimator::new(50, 3) else {
+        defmt::error!("bench-id: decimator refused");
+        return;
+    };
+    let mut signal = Eq17::new();
+    let mut push = Stat::default();
+    for _ in 0..CONVERSIONS {
+        let x = signal.next().x;
+        let (row, cost) = meter.measure(|| decimator.push_channels(black_box([x, 0.0, 0.0]), 1));
+        black_box(row);
+        push.add(cost);
+    }
+    push.print("decimate_conversion");
+
+    let shared: Shared<1> = Shared::new();
+    let counters: &Counters = &shared.counters;
+    let mut queue: EventQueue = EventQueue::new();
+    let (producer, mut consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    sampler.set_decimator(decimator);
+    let mut tick = Stat::default();
+    for i in 0..CONVERSIONS {
+        let x = signal.next().x;
+        let reading = Reading {
+            x,
+            v: None,
+            u: None,
+        };
+        let (_, cost) = meter.measure(|| sampler.tick(black_box(i), black_box(reading), counters));
+        tick.add(cost);
+        while let Some(Event::Sample { .. }) = consumer.dequeue() {}
+    }
+    tick.print("sampler_conversion");
+}
+
+/// Not in this image (feature `bench-profile`).
+#[cfg(not(all(feature = "bench-profile", not(feature = "bench-baseline"))))]
+fn decimation(_meter: &mut Meter) {}
+
 /// Runs the stream and the profile and prints their figures.
 pub fn run(meter: &mut Meter) {
     defmt::info!(
@@ -536,5 +585,6 @@ pub fn run(meter: &mut Meter) {
     );
     stream(meter);
     profile(meter);
+    decimation(meter);
     defmt::info!("bench-id end");
 }

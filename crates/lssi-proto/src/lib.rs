@@ -65,7 +65,7 @@ pub use frame::write_frame;
 pub use frame::{
     FrameDecoder, Frames, decode_frame, decode_host_frame, encode, encode_device, encode_host,
 };
-pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireLibrary};
+pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireDuty, WireLibrary};
 /// postcard's worst-case size trait, implemented by every wire type.
 pub use postcard::experimental::max_size::MaxSize;
 
@@ -76,7 +76,7 @@ pub use postcard::experimental::max_size::MaxSize;
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
 /// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0

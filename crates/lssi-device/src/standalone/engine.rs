@@ -14,12 +14,16 @@ use lssi_proto::SnapshotCause;
 /// configured: `.bss`).
 pub struct Engine<const W: usize, const P: usize, const C: usize> {
     slot: IdentifierSlot<f32, W, P, C>,
-    /// The sampling period, s (a sample's time is its index times this).
+    /// The sampling period, s (a sample's time is its index times this, plus `offset`).
     period: f64,
+    /// The time of row 0, s (a decimator's delay: see `decimate`).
+    offset: f64,
     /// Configured since the snapshot was last filled: the snapshot's model is stale.
     fresh: bool,
     /// The recording ended; its final snapshot is still to be taken.
     final_pending: bool,
+    /// A duty cycle's window ended; its snapshot is still to be taken.
+    window_pending: bool,
     ended: bool,
     /// Clock ticks of the pushes since configured: sum, count, largest.
     cost_sum: u64,
@@ -39,8 +43,10 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         Self {
             slot: IdentifierSlot::new(),
             period: 0.0,
+            offset: 0.0,
             fresh: false,
             final_pending: false,
+            window_pending: false,
             ended: false,
             cost_sum: 0,
             cost_count: 0,
@@ -55,10 +61,22 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
 
     /// Configures the identifier in place (a refused configuration changes nothing).
     pub fn configure(&mut self, config: Config) -> Result<(), lssi_core::ConfigError> {
+        self.configure_at(config, 0.0)
+    }
+
+    /// Configures the identifier in place, row `i` at `i · sample_period + offset` seconds
+    /// (a decimator's rows: `Decimator::time_offset`).
+    pub fn configure_at(
+        &mut self,
+        config: Config,
+        offset: f64,
+    ) -> Result<(), lssi_core::ConfigError> {
         self.slot.configure(config)?;
         self.period = config.sample_period;
+        self.offset = offset;
         self.fresh = true;
         self.final_pending = false;
+        self.window_pending = false;
         self.ended = false;
         self.cost_sum = 0;
         self.cost_count = 0;
@@ -77,9 +95,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         shared: &Shared<P>,
         clock: &K,
     ) {
-        if let Some(config) = critical_section::with(|cs| shared.pending.borrow(cs).take()) {
+        if let Some((config, offset)) =
+            critical_section::with(|cs| shared.pending.borrow(cs).take())
+        {
             // A refused configuration was checked by thread mode before it was requested.
-            let _ = self.configure(config);
+            let _ = self.configure_at(config, offset);
         }
         while let Some(event) = events.dequeue() {
             shared.counters.consumed.fetch_add(1, Ordering::Relaxed);
@@ -106,9 +126,15 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     self.ended = true;
                     self.final_pending = self.slot.get().is_some();
                 }
+                Event::Pause => {
+                    self.window_pending = self.slot.get().is_some();
+                }
             }
         }
-        if self.final_pending && self.hand_over(shared, SnapshotCause::Final) {
+        if self.window_pending && self.hand_over(shared, SnapshotCause::Scheduled, true) {
+            self.window_pending = false;
+        }
+        if self.final_pending && self.hand_over(shared, SnapshotCause::Final, false) {
             self.final_pending = false;
         }
         self.publish(shared);
@@ -116,18 +142,24 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
 
     fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P>) {
         let period = self.period;
+        let offset = self.offset;
         let fresh = &mut self.fresh;
         let Some(id) = self.slot.get_mut() else {
             return;
         };
         let sample = Sample {
-            t: index as f64 * period,
+            t: index as f64 * period + offset,
             x: reading.x,
             v: reading.v,
             u: reading.u,
         };
         // A rejected sample (NaN, saturated, wrong channels) is counted by the identifier.
+        // Sampling in windows, the model is screened once a window (at its end) instead.
+        let windowed = shared.windowed.load(Ordering::Relaxed);
         let _ = id.push_with(sample, |id| {
+            if windowed {
+                return false;
+            }
             match shared.take_free() {
                 Some(snapshot) => {
                     if core::mem::replace(fresh, false) {
@@ -135,10 +167,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     }
                     id.snapshot_into(snapshot);
                     critical_section::with(|cs| {
-                        shared
-                            .full
-                            .borrow(cs)
-                            .set(Some((snapshot, SnapshotCause::Scheduled)))
+                        shared.full.borrow(cs).set(Some((
+                            snapshot,
+                            SnapshotCause::Scheduled,
+                            false,
+                        )))
                     });
                 }
                 None => {
@@ -152,8 +185,8 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         });
     }
 
-    /// Takes the final snapshot if the snapshot is free.
-    fn hand_over(&mut self, shared: &Shared<P>, cause: SnapshotCause) -> bool {
+    /// Takes the final (or a window's) snapshot if the snapshot is free.
+    fn hand_over(&mut self, shared: &Shared<P>, cause: SnapshotCause, window: bool) -> bool {
         let Some(id) = self.slot.get() else {
             return true;
         };
@@ -164,7 +197,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause))));
+        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause, window))));
         true
     }
 

@@ -6,7 +6,7 @@
 //!
 //! | context | priority | does |
 //! |---|---|---|
-//! | TIMER0 | 0x00 | one reading → the 64-place queue (overruns counted); pends identify |
+//! | TIMER0 | 0x00 | one conversion → the decimator; a row → the 64-place queue (overruns counted), pends identify |
 //! | UART0 RX/TX | 0x40 | bytes ↔ bounded rings |
 //! | identify (IRQ 10, pended) | 0x80 | queue → identifier rows; a screening's snapshot to thread mode |
 //! | thread mode | lowest | the screening on the snapshot; frames; host commands; `wfi` |
@@ -26,12 +26,13 @@ use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
 use lssi_core::{Config, Snapshot};
+use lssi_device::decimate::{self, Decimator};
 use lssi_device::standalone::{Clock, Engine, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
 use lssi_device::{DEFAULT_TERMS, Transport, wire};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{CHANNELS, WINDOW, platform, uart};
-use lssi_proto::{HostMsg, decode_frame};
+use lssi_proto::{HostMsg, WireDuty, decode_frame};
 
 type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
 
@@ -66,26 +67,77 @@ static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCel
 static TX_IDLE: AtomicBool = AtomicBool::new(true);
 /// Received bytes lost (ring full or UART overrun).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
+/// The longest the core stayed awake between two `wfi`s, clock ticks (the interrupts taken
+/// in between included): the longest wake-up, what a harvester's storage capacitor must
+/// carry at run current.
+static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
+/// `wfi`s executed (wake-ups).
+static SLEEPS: AtomicU32 = AtomicU32::new(0);
 
-/// The image's own configuration, used when no configuration is stored: lssi-core's
-/// defaults at the sensor's rate, a screening a second.
-fn default_config(rate_hz: f64) -> Config {
+/// The row rate of the image's own configuration, Hz: about 60 rows a forcing period of
+/// a harvester forced at 3.4 Hz (eveh, Ω = 21.4 rad/s), 10 a period at 20 Hz. The ADC
+/// (the recording's rate) is decimated to it by a whole factor.
+pub const DEFAULT_ROW_HZ: f64 = 200.0;
+
+/// The CIC order of the decimation (see lssi_device::decimate): −57 dB on what folds onto
+/// a tenth of the row rate.
+pub const CIC_ORDER: u8 = 3;
+
+/// The decimation factor of the image's own configuration for an ADC converting at
+/// `adc_hz`: the whole number of conversions nearest to a row at [`DEFAULT_ROW_HZ`].
+fn default_factor(adc_hz: f64) -> u32 {
+    let d = libm::round(adc_hz / DEFAULT_ROW_HZ);
+    (d as u32).clamp(1, lssi_device::decimate::MAX_FACTOR)
+}
+
+/// The image's own configuration, used when no configuration is stored: rows at about
+/// [`DEFAULT_ROW_HZ`] (a whole number of the ADC's conversions at `adc_hz`), a derivative
+/// window of a tenth of a second at that rate, a row every sample, a screening a second;
+/// lssi-core's defaults otherwise.
+fn default_config(adc_hz: f64) -> Config {
+    let d = default_factor(adc_hz);
+    let row_hz = adc_hz / f64::from(d);
+    let window = ((row_hz / 10.0) as usize | 1).clamp(7, WINDOW - 1);
     Config {
-        sample_period: 1.0 / rate_hz,
-        screening_period: (rate_hz as u32).max(1000),
+        sample_period: f64::from(d) / adc_hz,
+        window,
+        row_stride: 1,
+        screening_period: (row_hz as u32).max(100),
         ..Config::default()
     }
 }
 
-/// The stored configuration (a host's `Configure` frame), if there is a valid one.
-fn stored_config(recording: &Recording) -> Option<Config> {
+/// Configures `engine` with `config`, its rows decimated from the ADC's `adc_hz` (a whole
+/// number of conversions a row); the decimator, or `None` if either is refused.
+fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> {
+    let Some(d) = decimate::factor_for(adc_hz, config.sample_period) else {
+        defmt::warn!(
+            "a row period of {=f64} s is no whole number of conversions at {=f64} Hz",
+            config.sample_period,
+            adc_hz
+        );
+        return None;
+    };
+    let decimator = Decimator::new(d, CIC_ORDER).ok()?;
+    match engine.configure_at(config, decimator.time_offset(adc_hz)) {
+        Ok(()) => Some(decimator),
+        Err(e) => {
+            defmt::warn!("configuration refused ({})", defmt::Display2Format(&e));
+            None
+        }
+    }
+}
+
+/// The stored configuration (a host's `Configure` frame) and its duty cycle, if there is a
+/// valid one.
+fn stored_config(recording: &Recording) -> Option<(Config, Option<WireDuty>)> {
     let mut buffer = [0u8; mps2::MAX_CONFIG];
     let frame = recording.config_frame(&mut buffer);
     if frame.is_empty() {
         return None;
     }
     match decode_frame::<HostMsg>(frame) {
-        Ok(HostMsg::Configure(c)) => Some(wire::config_from_wire(&c)),
+        Ok(HostMsg::Configure(c)) => Some((wire::config_from_wire(&c), c.duty)),
         _ => {
             defmt::warn!("the stored configuration does not decode: using the image's");
             None
@@ -118,45 +170,67 @@ fn main() -> ! {
     ) else {
         platform::exit(platform::EXIT_PANIC)
     };
-    let mut config = stored_config(&recording).unwrap_or_else(|| default_config(recording.rate_hz));
+    let (mut config, duty) = stored_config(&recording).map_or_else(
+        || (default_config(recording.rate_hz), None),
+        |(c, d)| (c, d),
+    );
     config.channels.velocity = recording.velocity;
     config.channels.input = recording.input;
-    if let Err(e) = engine.configure(config) {
-        defmt::warn!(
-            "configuration refused ({}): using the image's",
-            defmt::Display2Format(&e)
-        );
-        config = default_config(recording.rate_hz);
-        config.channels.velocity = recording.velocity;
-        config.channels.input = recording.input;
-        if engine.configure(config).is_err() {
-            platform::exit(platform::EXIT_PANIC)
+    let rate = recording.rate_hz;
+    let decimator = match configure(engine, rate, config) {
+        Some(d) => d,
+        None => {
+            defmt::warn!("using the image's configuration");
+            config = default_config(rate);
+            config.channels.velocity = recording.velocity;
+            config.channels.input = recording.input;
+            let Some(d) = configure(engine, rate, config) else {
+                platform::exit(platform::EXIT_PANIC)
+            };
+            d
         }
-    }
+    };
     SHARED.give_snapshot(snapshot);
     let (producer, consumer) = queue.split();
     IDENTIFY.give(engine, consumer);
     let (rx_in, mut rx_out) = rx.split();
     let (tx_in, tx_out) = tx.split();
+    let mut sampler = Sampler::new(producer);
+    sampler.set_decimator(decimator);
     critical_section::with(|cs| {
         SENSOR.borrow_ref_mut(cs).replace(Sensor {
-            sampler: Sampler::new(producer),
+            sampler,
             recording,
             next: 0,
         });
         RX_IN.borrow_ref_mut(cs).replace(rx_in);
         TX_OUT.borrow_ref_mut(cs).replace(tx_out);
     });
-    let rate = recording.rate_hz;
+    let row_hz = 1.0 / config.sample_period;
     defmt::info!(
-        "lssi standalone: {=u32} samples at {=f64} Hz, window {=usize}, screening every {=u32}",
+        "lssi standalone: {=u32} conversions at {=f64} Hz, decimated by {=u32} (CIC order {=u8}) to rows at {=f64} Hz, window {=usize}, screening every {=u32}",
         recording.len,
         rate,
+        decimator.factor(),
+        decimator.order(),
+        row_hz,
         config.window,
         config.screening_period
     );
     let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS> =
-        Reporter::new(config, rate as f32, BoardClock::HZ);
+        Reporter::new(config, row_hz as f32, BoardClock::HZ);
+    reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
+    // A duty cycle: windows of identification, Model and Health at the end of each, the
+    // sensor left alone in between (the sampling interrupt drops the recording's samples
+    // of the interval: time goes on).
+    reporter.set_duty(duty, &SHARED);
+    if let Some(d) = duty {
+        defmt::info!(
+            "duty cycle: {=f32} s windows every {=f32} s",
+            d.window,
+            d.window + d.interval
+        );
+    }
     let mut link = Link { tx: tx_in };
 
     #[allow(unsafe_code)]
@@ -174,6 +248,8 @@ fn main() -> ! {
     }
     mps2::uart_interrupts_on();
     mps2::start_sampling(mps2::sampling_reload(rate));
+    let mut windows_logged = 0;
+    let mut woke = BoardClock.now();
 
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
@@ -182,12 +258,31 @@ fn main() -> ! {
         if reporter.finished() {
             finish(&reporter)
         }
+        if let Some(drift) = reporter.drift()
+            && drift.windows != windows_logged
+        {
+            windows_logged = drift.windows;
+            defmt::info!(
+                "window {=u32}: coefficients moved {=f32} (RMS relative), at most {=f32} (term {=u8}), {=u8} terms in or out",
+                drift.windows,
+                drift.relative,
+                drift.largest,
+                drift.largest_term,
+                drift.support_changes
+            );
+        }
         if idle {
             // Sleeps only if nothing waits; checked with interrupts off so that an
             // interrupt in between still wakes the `wfi` (it is taken right after).
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
+                    let awake = BoardClock.now().wrapping_sub(woke);
+                    AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
+                    SLEEPS.fetch_add(1, Ordering::Relaxed);
                     cortex_m::asm::wfi();
+                    // The interrupt that woke the core runs after this critical section:
+                    // it counts in the next wake-up.
+                    woke = BoardClock.now();
                 }
             });
         }
@@ -210,6 +305,13 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
         c.screenings_skipped.load(Ordering::Relaxed),
         reporter.frames_sent,
         RX_LOST.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "wake-ups: {=u32}, the longest {=u32} ticks awake (2.5 instructions a tick under -icount shift=4), the worst row {=u32} ticks, the worst screening {=u32} ticks",
+        SLEEPS.load(Ordering::Relaxed),
+        AWAKE_MAX.load(Ordering::Relaxed),
+        status.cost_max,
+        reporter.screen_cost_max()
     );
     platform::exit(platform::EXIT_SUCCESS)
 }
@@ -248,18 +350,27 @@ fn kick_tx() {
 fn on_timer() {
     mps2::clear_sampling_irq();
     let stamp = BoardClock.now();
-    critical_section::with(|cs| {
-        if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
-            if sensor.next < sensor.recording.len {
-                let reading = sensor.recording.reading(sensor.next);
-                sensor.next += 1;
-                sensor.sampler.tick(stamp, reading, &SHARED.counters);
-            } else if sensor.sampler.end() {
+    // The identify task is woken only when a row is made (once every decimation factor
+    // conversions), and at the end.
+    let row = critical_section::with(|cs| {
+        let mut sensor = SENSOR.borrow_ref_mut(cs);
+        let Some(sensor) = sensor.as_mut() else {
+            return false;
+        };
+        if sensor.next < sensor.recording.len {
+            let reading = sensor.recording.reading(sensor.next);
+            sensor.next += 1;
+            sensor.sampler.convert(stamp, reading, &SHARED)
+        } else {
+            if sensor.sampler.end() {
                 mps2::stop_sampling();
             }
+            true
         }
     });
-    NVIC::pend(Irq::Identify);
+    if row {
+        NVIC::pend(Irq::Identify);
+    }
 }
 
 fn on_identify() {
