@@ -659,6 +659,27 @@ mod tests {
     }
 
     #[test]
+    fn harvester_flag_defaults_are_the_library_defaults() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Piezo {
+            #[command(flatten)]
+            args: PiezoArgs,
+        }
+        #[derive(Parser)]
+        struct Em {
+            #[command(flatten)]
+            args: EmArgs,
+        }
+        let piezo = Piezo::parse_from(["test", "out.csv"]);
+        assert_eq!(piezo.args.options(), HarvesterOptions::piezo());
+        let em = Em::parse_from(["test", "out.csv"]);
+        assert_eq!(em.args.options(), HarvesterOptions::electromagnetic());
+        let bistable = Piezo::parse_from(["test", "--wells", "bistable", "out.csv"]);
+        assert_eq!(bistable.args.options().initial_displacement, 7e-3);
+    }
+
+    #[test]
     fn eveh_flag_defaults_are_the_library_defaults() {
         use clap::Parser;
         #[derive(Parser)]
