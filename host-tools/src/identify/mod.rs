@@ -297,12 +297,17 @@ pub fn identify_recording(
     recording: &Recording,
     options: &Options,
 ) -> Result<Report, IdentifyError> {
+    let reference = Reference::of(recording);
+    let shifted = reference.shifted(recording);
+    let recording = shifted.as_ref().unwrap_or(recording);
     let (config, estimated) = configure(recording, options)?;
-    if options.f32 {
+    let mut report = if options.f32 {
         run::<f32>(recording, config, estimated)
     } else {
         run::<f64>(recording, config, estimated)
-    }
+    }?;
+    reference.restore(&mut report);
+    Ok(report)
 }
 
 /// Runs a recording through the identifier in precision `T`.
@@ -364,6 +369,76 @@ pub fn run<T: Real>(
     );
     report.rejections = rejections;
     Ok(report)
+}
+
+/// Rows whose mean is the reference of a channel ([`Reference`]).
+pub const REFERENCE_ROWS: usize = 1024;
+
+/// The references subtracted from x and v (in f64, before anything is estimated from them or
+/// they are converted to the identifier's precision), and added back to the model's offsets
+/// ([`Reference::restore`]): the mean of a channel's
+/// first [`REFERENCE_ROWS`] finite values when it lies more than their standard deviation
+/// from 0, else 0. Raw ADC counts, or a displacement 10⁴ times its amplitude away from zero,
+/// leave an f32 only a few significant bits of the motion; less the reference they keep all
+/// 24 (a device can do the same with its first rows). A recording about zero is fed as it is.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Reference {
+    /// Subtracted from x.
+    pub x: f64,
+    /// Subtracted from v.
+    pub v: f64,
+}
+
+impl Reference {
+    /// The references of a recording's x and v.
+    pub fn of(recording: &Recording) -> Self {
+        Self {
+            x: Self::channel(&recording.x),
+            v: recording.v.as_deref().map_or(0.0, Self::channel),
+        }
+    }
+
+    /// The reference of one channel: the mean of its first [`REFERENCE_ROWS`] finite values
+    /// when it is further from 0 than their standard deviation, else 0.
+    pub fn channel(values: &[f64]) -> f64 {
+        let head: Vec<f64> = values
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .take(REFERENCE_ROWS)
+            .collect();
+        if head.is_empty() {
+            return 0.0;
+        }
+        let n = head.len() as f64;
+        let mean = head.iter().sum::<f64>() / n;
+        let sd = (head.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+        if mean.abs() > sd { mean } else { 0.0 }
+    }
+
+    /// Whether nothing is subtracted.
+    pub fn is_zero(&self) -> bool {
+        self.x == 0.0 && self.v == 0.0
+    }
+
+    /// The recording less the references (`None` when they are zero).
+    pub fn shifted(&self, recording: &Recording) -> Option<Recording> {
+        if self.is_zero() {
+            return None;
+        }
+        let mut out = recording.clone();
+        out.x.iter_mut().for_each(|x| *x -= self.x);
+        if let Some(v) = out.v.as_mut() {
+            v.iter_mut().for_each(|v| *v -= self.v);
+        }
+        Some(out)
+    }
+
+    /// The report's offsets back in the recording's coordinates.
+    pub fn restore(&self, report: &mut Report) {
+        report.offsets[0] += self.x;
+        report.offsets[1] += self.v;
+    }
 }
 
 fn names(terms: &[Term], support: u32, omega: f64) -> Vec<String> {

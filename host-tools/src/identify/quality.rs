@@ -599,8 +599,12 @@ pub fn identify_checked(
     options: &crate::identify::Options,
 ) -> Result<(Report, Quality), crate::identify::IdentifyError> {
     use crate::identify::run;
+    // A large offset is removed first (in f64), and put back in the report's offsets.
+    let reference = crate::identify::Reference::of(recording);
+    let shifted = reference.shifted(recording);
+    let recording = shifted.as_ref().unwrap_or(recording);
     let (config, estimated) = crate::identify::configure(recording, options)?;
-    let (report, other) = if options.f32 {
+    let (mut report, other) = if options.f32 {
         let report = run::<f32>(recording, config, estimated)?;
         (report, run::<f64>(recording, config, estimated).ok())
     } else {
@@ -608,6 +612,7 @@ pub fn identify_checked(
         (report, run::<f32>(recording, config, estimated).ok())
     };
     let quality = assess(recording, &config, &report, other.as_ref());
+    reference.restore(&mut report);
     Ok((report, quality))
 }
 

@@ -14,6 +14,7 @@ mod libraries;
 mod log_cli;
 mod low_rate;
 mod ode;
+mod offsets;
 mod plot;
 mod quality;
 mod recording;

@@ -139,7 +139,11 @@ pub fn identify_file(
     }
     let (_, quality) = identify::quality::identify_checked(&excerpt, options)?;
     let clock = std::time::Instant::now();
-    let (mut config, estimated) = configure(&excerpt, options)?;
+    // A large offset removed (in f64) for the configuration and Ω, as in memory; the run
+    // subtracts the same reference from every sample.
+    let reference = identify::Reference::of(&excerpt);
+    let shifted = reference.shifted(&excerpt);
+    let (mut config, estimated) = configure(shifted.as_ref().unwrap_or(&excerpt), options)?;
     debug(&format!("configure {:?}", clock.elapsed()));
     let mut summary = StreamSummary {
         streamed: true,
@@ -150,7 +154,14 @@ pub fn identify_file(
     };
     if estimated {
         summary.excerpt_omega = Some(config.omega);
-        let (omega, probes) = refine_omega(&excerpt, &config, options, csv.bytes_read(), stream)?;
+        let (omega, probes) = refine_omega(
+            shifted.as_ref().unwrap_or(&excerpt),
+            &config,
+            options,
+            csv.bytes_read(),
+            stream,
+            reference,
+        )?;
         config.omega = omega;
         summary.probes = probes;
         debug(&format!(
@@ -158,6 +169,7 @@ pub fn identify_file(
             clock.elapsed()
         ));
     }
+    drop(shifted);
     let report = if options.f32 {
         run::<f32>(csv, excerpt, config, estimated, &mut progress)
     } else {

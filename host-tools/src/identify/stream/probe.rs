@@ -140,6 +140,7 @@ pub(super) fn refine_omega(
     options: &Options,
     excerpt_bytes: u64,
     stream: &StreamOptions,
+    reference: crate::identify::Reference,
 ) -> Result<(f64, usize), IdentifyError> {
     let file = excerpt.path.display();
     let omega0 = config.omega;
@@ -218,6 +219,8 @@ pub(super) fn refine_omega(
         else {
             return false;
         };
+        // Less the excerpt's reference, as the excerpt is.
+        let recording = reference.shifted(&recording).unwrap_or(recording);
         let Some(&end) = recording.t.iter().rev().find(|t| t.is_finite()) else {
             return false;
         };

@@ -20,11 +20,14 @@ pub(super) fn run<T: Real>(
     let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
         Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let mut rejections = Vec::new();
+    // A large offset removed in f64 before the conversion to T, as in memory (the excerpt's
+    // first rows give the reference).
+    let reference = identify::Reference::of(&excerpt);
     let mut push = |i: usize, s: Sample| {
         let sample = lssi_core::Sample {
             t: s.t,
-            x: T::from_f64(s.x),
-            v: s.v.map(T::from_f64),
+            x: T::from_f64(s.x - reference.x),
+            v: s.v.map(|v| T::from_f64(v - reference.v)),
             u: s.u.map(T::from_f64),
         };
         if let Err(why) = identifier.push(sample)
@@ -118,6 +121,7 @@ pub(super) fn run<T: Real>(
     );
     notes.extend(rejections);
     report.rejections = notes;
+    reference.restore(&mut report);
     Ok(report)
 }
 
