@@ -479,7 +479,8 @@ impl Limit {
     /// The reach extrapolates the tail as a power law through the 95th and 99th percentiles
     /// q₉₅, q₉₉ of |r − centre|: P(|r| > q) ∝ q^(−α), α = ln 5 / ln(q₉₉/q₉₅), to the largest of
     /// 100 such records, q₉₉ m^(1/α) for m residuals. The same extrapolation of Gaussian noise
-    /// (q₉₉ = 2.576 σ, α = 5.89) is the reference: Gaussian noise keeps 12 σ at any length,
+    /// (q₉₉ = 2.576 σ, α = 5.89) is the reference: Gaussian noise keeps about 12 σ at any length
+    /// (the ratio of the two reaches is 1 up to the percentiles' scatter),
     /// while heavy-tailed noise, such as a laser vibrometer's (speckle dropouts: BistableX's
     /// velocity has q₉₉ = 5–10 σ, α ≈ 2, and single-sample excursions up to 140 σ, like
     /// Student's t with 2–3 degrees of freedom), gets a limit beyond what its own excursions
