@@ -329,10 +329,52 @@ fn missing_column(path: &Path, line: u64, column: &str, found: &[String]) -> Str
             "; line {line} looks like data, so the file seems to have no header row: \
              add one such as 't,x,v'."
         ));
+    } else if let Some(hint) = header_hint(column, found) {
+        text.push_str("; ");
+        text.push_str(&hint);
+        text.push('.');
     } else {
         text.push('.');
     }
     text
+}
+
+/// A hint for a header without `column`: another delimiter than the comma (one field holding
+/// `;`, a tab or `|`), or a name that differs only in case (`T` for `t`: the option to give).
+fn header_hint(column: &str, found: &[String]) -> Option<String> {
+    if let [only] = found {
+        let delimiters = [
+            (';', "semicolons (';')"),
+            ('\t', "tabs"),
+            ('|', "bars ('|')"),
+        ];
+        if let Some((_, name)) = delimiters.iter().find(|(d, _)| only.contains(*d)) {
+            return Some(format!(
+                "the header seems to be separated by {name}, but lssi reads comma-separated files: \
+                 replace the delimiter with commas (e.g. tr ';\\t' ',,' < in > out.csv)"
+            ));
+        }
+    }
+    let other = found.iter().find(|f| f.eq_ignore_ascii_case(column))?;
+    // Every default name the header has in another case: all the options needed at once.
+    let flags: Vec<String> = ["t", "x", "v", "u"]
+        .iter()
+        .filter(|name| !found.iter().any(|f| f == *name))
+        .filter_map(|name| {
+            found
+                .iter()
+                .find(|f| f.eq_ignore_ascii_case(name))
+                .map(|f| format!("--{name}-col {f}"))
+        })
+        .collect();
+    let give = if flags.is_empty() {
+        format!("the matching --t-col, --x-col, --v-col or --u-col {other}")
+    } else {
+        flags.join(" ")
+    };
+    Some(format!(
+        "column '{other}' differs only in case (names are case-sensitive): give {give}"
+    ))
 }
 
 /// The sentence of [`RecordingError::Ragged`].

@@ -263,7 +263,9 @@ pub fn configure(
             Some(w) => w,
             None => {
                 estimated = true;
-                estimate_omega(recording, &config)?
+                // A broken time axis is named as such, not as a reason to give --omega.
+                estimate_omega(recording, &config)
+                    .map_err(|e| time_axis(recording).map_or(e, IdentifyError))?
             }
         };
     }
@@ -284,11 +286,96 @@ pub fn configure(
     if estimated {
         config.omega = polish::polish_omega(recording, &config, config.omega);
     }
-    crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path)?;
+    crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path)
+        .map_err(|e| time_axis(recording).map_or(e, IdentifyError))?;
     config
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     Ok((config, estimated))
+}
+
+/// A time column that is not a regular grid, named: rounded to too few decimals (steps of 0),
+/// samples dropped (steps of two or more periods) or jittered (steps off the median by more
+/// than half of it), when such steps are at least 1 % of them; `None` otherwise. Said when the
+/// recording cannot be identified for it (its clean stretches too short).
+pub fn time_axis(recording: &Recording) -> Option<String> {
+    let file = recording.path.display();
+    let t: Vec<(usize, f64)> = recording
+        .t
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, t)| t.is_finite())
+        .collect();
+    if t.len() < 3 {
+        return None;
+    }
+    let steps: Vec<(usize, f64)> = t.windows(2).map(|w| (w[1].0, w[1].1 - w[0].1)).collect();
+    let mut positive: Vec<f64> = steps.iter().map(|s| s.1).filter(|d| *d > 0.0).collect();
+    if positive.is_empty() {
+        return None;
+    }
+    positive.sort_by(f64::total_cmp);
+    let dt = positive[positive.len() / 2];
+    let span = t[t.len() - 1].1 - t[0].1;
+    let mean = span / steps.len() as f64;
+    let early: Vec<usize> = steps
+        .iter()
+        .filter(|s| s.1 < 0.5 * dt)
+        .map(|s| s.0 + 1)
+        .collect();
+    let gaps: Vec<(usize, f64)> = steps
+        .iter()
+        .filter(|s| s.1 > 1.5 * dt)
+        .map(|s| (s.0 + 1, s.1 / dt))
+        .collect();
+    if early.len() + gaps.len() < (steps.len() / 100).max(1) {
+        return None;
+    }
+    use crate::identify::blemish::where_text;
+    let end = "so the samples are not evenly spaced in time; the identifier needs a regular time axis (one sample period between rows)";
+    // Rounded: every time a multiple of 10⁻ᵈ no finer than half the mean step, steps of 0
+    // (under half the median) at least as many as the gaps.
+    let rounded = (0..=9).find(|&d| {
+        let q = 10f64.powi(-d);
+        t.iter()
+            .all(|(_, t)| ((t / q) - (t / q).round()).abs() < 1e-6 * (t / q).abs().max(1.0))
+    });
+    if let Some(d) =
+        rounded.filter(|&d| 10f64.powi(-d) >= 0.5 * mean && early.len() >= gaps.len().max(1))
+    {
+        return Some(format!(
+            "{file}: the time column is rounded to {d} decimal{} (steps of {:e} s), coarser than the sample period (about {mean:.4e} s): {} steps are 0 or under half the median step ({}), {end}: write t with more digits.",
+            if d == 1 { "" } else { "s" },
+            10f64.powi(-d),
+            early.len(),
+            where_text(&early)
+        ));
+    }
+    let multiples = gaps
+        .iter()
+        .filter(|(_, k)| (k - k.round()).abs() < 0.1)
+        .count();
+    if early.len() * 10 <= gaps.len() && multiples * 10 >= gaps.len() * 9 {
+        let rows: Vec<usize> = gaps.iter().map(|g| g.0).collect();
+        let largest = gaps.iter().map(|g| g.1).fold(0.0, f64::max);
+        return Some(format!(
+            "{file}: the time column has gaps: {} steps are 2× to {largest:.0}× the median step ({dt:.4e} s), at {} (samples dropped), {end}.",
+            gaps.len(),
+            where_text(&rows)
+        ));
+    }
+    let mut deviations: Vec<f64> = steps.iter().map(|s| (s.1 / dt - 1.0).abs()).collect();
+    deviations.sort_by(f64::total_cmp);
+    let spread = 100.0 * deviations[deviations.len() / 2];
+    let mut rows: Vec<usize> = early.clone();
+    rows.extend(gaps.iter().map(|g| g.0));
+    rows.sort_unstable();
+    Some(format!(
+        "{file}: the time column is jittered: {} steps are off the median step ({dt:.4e} s) by more than half of it, at {} (the median step is off by {spread:.0} %), {end}: resample onto an even grid.",
+        rows.len(),
+        where_text(&rows)
+    ))
 }
 
 /// Configures and runs the identifier on a recording, in f32 or f64 as `options` say: what

@@ -27,4 +27,5 @@ mod standard_errors;
 mod stream;
 mod sweep;
 mod telemetry_fuzz;
+mod time_axis;
 mod track;
