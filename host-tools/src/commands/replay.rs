@@ -15,7 +15,7 @@ use crate::commands::identifier::IdentifierArgs;
 use crate::error::CliError;
 use crate::identify::{self, Options};
 use crate::recording::ColumnNames;
-use crate::serial::device::{DEFAULT_FIRMWARE, SimOptions};
+use crate::serial::device::{BURST_RATE, DEFAULT_FIRMWARE, MAX_BURST, SimOptions};
 use crate::serial::link::LinkOptions;
 use crate::serial::replay::{ReplayReport, render_link};
 use crate::serial::session::{self, Device, Setup};
@@ -59,19 +59,22 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "PATH", conflicts_with = "qemu")]
     pub port: Option<String>,
     /// Baud rate of the port (firmware-sim paces its pty at it).
-    #[arg(long, default_value_t = 921_600, value_name = "N")]
+    #[arg(long, default_value_t = 921_600, value_name = "N", value_parser = count::<u32>, allow_hyphen_values = true)]
     pub baud: u32,
-    /// firmware-sim: probability of flipping each bit on the line.
-    #[arg(long, default_value_t = 0.0, value_name = "R")]
+    /// firmware-sim: probability per byte, in each direction, of flipping one random bit of
+    /// it (0.001: about one byte in a thousand damaged).
+    #[arg(long, default_value_t = 0.0, value_name = "R", value_parser = number, allow_hyphen_values = true)]
     pub flip_rate: f64,
-    /// firmware-sim: probability of dropping each frame.
-    #[arg(long, default_value_t = 0.0, value_name = "R")]
+    /// firmware-sim: probability per byte, in each direction, of dropping it (a frame that
+    /// loses a byte fails its check and is sent again).
+    #[arg(long, default_value_t = 0.0, value_name = "R", value_parser = number, allow_hyphen_values = true)]
     pub drop_rate: f64,
-    /// firmware-sim: one burst of this many corrupted bytes.
-    #[arg(long, default_value_t = 0, value_name = "N")]
+    /// firmware-sim: insert bursts of 1 to N random bytes in each direction, one burst per
+    /// 4096 bytes on average (0: none; at most 65535).
+    #[arg(long, default_value_t = 0, value_name = "N", value_parser = count::<u32>, allow_hyphen_values = true)]
     pub burst: u32,
     /// firmware-sim: seed of the faults.
-    #[arg(long, default_value_t = 1, value_name = "S")]
+    #[arg(long, default_value_t = 1, value_name = "S", value_parser = count::<u64>, allow_hyphen_values = true)]
     pub seed: u64,
     /// Run the firmware image under QEMU (mps2-an386) and replay through its UART.
     #[arg(long)]
@@ -86,11 +89,11 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
     /// Most sample batches unacknowledged at once.
-    #[arg(long, default_value_t = 8, value_name = "N")]
+    #[arg(long, default_value_t = 8, value_name = "N", value_parser = count::<usize>, allow_hyphen_values = true)]
     pub window: usize,
     /// Most samples per batch (at most 24 with f32, 64 with i16; default: the most). The
     /// link shortens its batches while it measures losses and lengthens them again.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = count::<usize>, allow_hyphen_values = true)]
     pub batch: Option<usize>,
     /// How the samples cross the link.
     #[arg(long, value_enum, default_value_t = Encoding::F32)]
@@ -100,7 +103,7 @@ pub struct ReplayArgs {
     #[arg(long, requires = "port")]
     pub resume: bool,
     /// Seconds the link goes on without progress before it gives up.
-    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS", value_parser = number, allow_hyphen_values = true)]
     pub deadline: f64,
     /// Which header names hold which quantity.
     #[command(flatten)]
@@ -111,6 +114,24 @@ pub struct ReplayArgs {
     /// Print one JSON object instead of text.
     #[arg(long, help_heading = "Output")]
     pub json: bool,
+}
+
+/// A flag's number: any decimal number (a negative or out-of-range one is refused later by
+/// lssi with a sentence naming the range), or clap's error with one naming what is wanted.
+fn number(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse::<f64>()
+        .map_err(|_| format!("{text:?} is not a number"))
+}
+
+/// A flag's whole number: a negative one and one too large are named as such.
+fn count<T: std::str::FromStr>(text: &str) -> Result<T, String> {
+    let text = text.trim();
+    text.parse::<T>().map_err(|_| match text.parse::<f64>() {
+        Ok(v) if v < 0.0 => format!("{text} is negative; it must be a whole number"),
+        Ok(v) if v.fract() == 0.0 => format!("{text} is too large"),
+        _ => format!("{text:?} is not a whole number"),
+    })
 }
 
 impl ReplayArgs {
@@ -187,13 +208,21 @@ impl ReplayArgs {
             ("--flip-rate", self.flip_rate),
             ("--drop-rate", self.drop_rate),
         ] {
+            // `contains` is false for NaN as well.
             if !(0.0..=1.0).contains(&value) {
                 return Err(CliError::BadFlag {
                     flag,
                     value: value.to_string(),
-                    requirement: "a probability between 0 and 1".into(),
+                    requirement: "a probability per byte between 0 and 1".into(),
                 });
             }
+        }
+        if self.burst > MAX_BURST {
+            return Err(CliError::BadFlag {
+                flag: "--burst",
+                value: self.burst.to_string(),
+                requirement: format!("at most {MAX_BURST} bytes (firmware-sim's longest burst)"),
+            });
         }
         let faults = self.flip_rate > 0.0 || self.drop_rate > 0.0 || self.burst > 0;
         if faults && (self.port.is_some() || self.qemu) {
@@ -225,6 +254,16 @@ impl ReplayArgs {
 pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
     let report = replay(args)?;
     print_report(&report, args.json);
+    if !args.json
+        && let Some(injected) = injected(args)
+    {
+        crate::outln!(
+            "faults: firmware-sim damaged about {:.3} % of the bytes each way ({}); measured on the line to the device: {:.3} %",
+            100.0 * injected,
+            fault_list(args),
+            100.0 * report.link.line_error_rate
+        );
+    }
     Ok(())
 }
 
@@ -256,6 +295,32 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         resume: args.resume,
     };
     session::replay(&setup)
+}
+
+/// The probability that firmware-sim damages a byte, as the flags ask: dropped, else flipped,
+/// or a burst inserted before it (`--burst`: one per 4096 bytes); `None` without faults.
+fn injected(args: &ReplayArgs) -> Option<f64> {
+    let burst = if args.burst > 0 { BURST_RATE } else { 0.0 };
+    let clean = (1.0 - args.drop_rate) * (1.0 - args.flip_rate) * (1.0 - burst);
+    (clean < 1.0 && args.port.is_none() && !args.qemu).then_some(1.0 - clean)
+}
+
+fn fault_list(args: &ReplayArgs) -> String {
+    let mut parts = Vec::new();
+    if args.flip_rate > 0.0 {
+        parts.push(format!("--flip-rate {} per byte", args.flip_rate));
+    }
+    if args.drop_rate > 0.0 {
+        parts.push(format!("--drop-rate {} per byte", args.drop_rate));
+    }
+    if args.burst > 0 {
+        parts.push(format!(
+            "--burst {}: a burst per {} bytes",
+            args.burst,
+            (1.0 / BURST_RATE).round()
+        ));
+    }
+    parts.join(", ")
 }
 
 fn print_report(report: &ReplayReport, json: bool) {

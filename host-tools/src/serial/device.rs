@@ -22,6 +22,11 @@ pub const SIM_ENV: &str = "LSSI_FIRMWARE_SIM";
 /// The firmware image `--qemu` runs without `--firmware`, relative to the workspace.
 pub const DEFAULT_FIRMWARE: &str =
     "crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-firmware";
+/// Probability per byte that firmware-sim inserts a burst before it when `--burst` > 0 (its
+/// default `--burst-rate`, which `lssi replay` leaves as it is: one burst per 4 KiB).
+pub const BURST_RATE: f64 = 1.0 / 4096.0;
+/// The longest burst firmware-sim takes (its `--burst` is a u16).
+pub const MAX_BURST: u32 = u16::MAX as u32;
 /// How long a child may take to announce its pty.
 pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(20);
 
@@ -30,11 +35,13 @@ pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(20);
 pub struct SimOptions {
     /// The baud rate it paces the pty at.
     pub baud: u32,
-    /// Probability of flipping each bit (firmware-sim's `--flip-rate`).
+    /// Probability per byte, each direction, of flipping one random bit of it
+    /// (firmware-sim's `--flip-rate`).
     pub flip_rate: f64,
-    /// Probability of dropping each frame (firmware-sim's `--drop-rate`).
+    /// Probability per byte, each direction, of dropping it (firmware-sim's `--drop-rate`).
     pub drop_rate: f64,
-    /// One burst of this many corrupted bytes (0: none).
+    /// Longest burst of random bytes inserted, each direction, before a byte with probability
+    /// [`BURST_RATE`] (0: none; firmware-sim's `--burst`).
     pub burst: u32,
     /// Seed of the faults.
     pub seed: u64,

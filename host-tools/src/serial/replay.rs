@@ -190,8 +190,17 @@ pub fn replay_over_with(
 
 /// The link line of the human output.
 pub fn render_link(stats: &LinkStats) -> String {
+    let line = if stats.line_error_rate > 0.0 {
+        format!(
+            "; the device received {} damaged frames: a byte error rate of about {:.3} % on the line to it\n",
+            stats.crc_errors.saturating_sub(stats.rx_crc_errors),
+            100.0 * stats.line_error_rate
+        )
+    } else {
+        "\n".to_string()
+    };
     format!(
-        "link: {} frames sent, {} retransmitted, {} CRC errors, {} samples lost, {} samples in {:.2} s ({:.0} samples/s)\n",
+        "link: {} frames sent, {} retransmitted, {} CRC errors, {} samples lost, {} samples in {:.2} s ({:.0} samples/s){line}",
         stats.frames_sent,
         stats.retransmits,
         stats.crc_errors,

@@ -12,9 +12,9 @@ use crate::error::CliError;
 use crate::identify::{self, Options};
 use crate::recording::{ColumnNames, Recording};
 use crate::serial::device::{DeviceProcess, SimOptions};
-use crate::serial::link::{Link, LinkOptions, LinkStats, Observer};
+use crate::serial::link::{Link, LinkError, LinkOptions, LinkStats, Observer};
 use crate::serial::quantise::{Quantised, quantise};
-use crate::serial::replay::{ReplayMode, ReplayReport, replay_over_with, wire_config};
+use crate::serial::replay::{ReplayError, ReplayMode, ReplayReport, replay_over_with, wire_config};
 use crate::telemetry::defmt::{DefmtLines, Tables};
 use crate::telemetry::{RecordKind, TelemetryLog};
 
@@ -235,7 +235,50 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         }
     }
     let _ = log.sync();
-    result.map_err(CliError::from)
+    result.map_err(|error| replay_error(error, &setup.device))
+}
+
+/// A replay's failure as `lssi` says it. A link that gave up at its deadline can be resumed
+/// on a port (the device keeps its state); firmware-sim and QEMU ran on a pty this replay
+/// started, which ended with it, so there is nothing to resume: the sentence says to replay
+/// again instead of `--resume --port` on a pty that no longer exists.
+fn replay_error(error: ReplayError, device: &Device) -> CliError {
+    let what = match device {
+        Device::Port(_) => return CliError::from(error),
+        Device::FirmwareSim => "firmware-sim",
+        Device::Qemu(_) => "QEMU",
+    };
+    match error {
+        ReplayError::Link(LinkError::Deadline {
+            port,
+            waiting_for,
+            waited,
+            frame_loss,
+            byte_error_rate,
+            acked,
+            samples,
+        }) => {
+            let measured = if frame_loss > 0.0 || byte_error_rate > 0.0 {
+                format!(
+                    "{:.1} % of the sample frames it sent were not acknowledged (a byte error rate of about {:.3} %)",
+                    100.0 * frame_loss,
+                    100.0 * byte_error_rate
+                )
+            } else {
+                "no sample frame had crossed yet".to_string()
+            };
+            let progress = if samples > 0 {
+                format!("; the device had acknowledged {acked} of {samples} samples")
+            } else {
+                String::new()
+            };
+            CliError::Device(format!(
+                "{port}: no progress for {:.1} s while the host waited for {waiting_for}, so it gives up: {measured}{progress}. {what} ran on that pty for this replay only and has ended, so it cannot be resumed: replay again (with lower fault rates or a longer --deadline).",
+                waited.as_secs_f64(),
+            ))
+        }
+        other => CliError::from(other),
+    }
 }
 
 fn log_write_error(path: &Path, error: std::io::Error) -> CliError {

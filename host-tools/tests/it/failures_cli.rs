@@ -456,3 +456,139 @@ fn info_names_gaps_short_files_and_constant_signals_as_identify_does() {
         "{text}"
     );
 }
+
+#[test]
+fn replay_refuses_bad_fault_options_with_its_own_sentence() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = generate(dir.path(), "r.csv", 8);
+    let log = dir.path().join("r.tlm");
+    for (flag, value) in [
+        ("--flip-rate", "-0.1"),
+        ("--flip-rate", "1.5"),
+        ("--flip-rate", "NaN"),
+        ("--drop-rate", "-1"),
+        ("--drop-rate", "inf"),
+    ] {
+        let out = lssi(&["replay", &file, flag, value, "--log", arg(&log)]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        let err = stderr(&out);
+        assert!(
+            err.starts_with(&format!("lssi: {flag} "))
+                && err
+                    .contains("cannot be used: it must be a probability per byte between 0 and 1."),
+            "{flag} {value}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+    let out = lssi(&["replay", &file, "--burst", "70000", "--log", arg(&log)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).starts_with("lssi: --burst 70000 cannot be used: it must be at most 65535")
+    );
+    // Not a number, or a negative count: clap's error, naming the flag and what is wrong.
+    for (flag, value, says) in [
+        ("--flip-rate", "x", "is not a number"),
+        ("--burst", "-1", "is negative"),
+        ("--window", "-3", "is negative"),
+    ] {
+        let out = lssi(&["replay", &file, flag, value]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = stderr(&out);
+        assert!(
+            err.contains(flag) && err.contains(says),
+            "{flag} {value}: {err}"
+        );
+        assert!(!err.contains("unexpected argument"), "{err}");
+    }
+    // Nothing was started or logged.
+    assert!(!log.exists());
+    let help = lssi(&["replay", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    for flag in ["--flip-rate", "--drop-rate"] {
+        let text = help.split(flag).nth(1).unwrap();
+        assert!(text[..200].contains("per byte"), "{flag}: {text}");
+    }
+}
+
+fn require_firmware_sim() {
+    let next_to_lssi = Path::new(env!("CARGO_BIN_EXE_lssi")).with_file_name("firmware-sim");
+    assert!(
+        next_to_lssi.is_file() || std::env::var_os("LSSI_FIRMWARE_SIM").is_some(),
+        "{} is not built: run `cargo build -p firmware-sim`",
+        next_to_lssi.display()
+    );
+}
+
+#[test]
+fn replay_measures_the_byte_error_rate_firmware_sim_injects() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let file = generate(dir.path(), "r.csv", 9);
+    for (flip, drop, seed) in [
+        ("0.002", "0", "1"),
+        ("0", "0.002", "2"),
+        ("0.001", "0.001", "3"),
+    ] {
+        let log = dir.path().join(format!("r{seed}.tlm"));
+        let out = lssi(&[
+            "replay",
+            &file,
+            "--flip-rate",
+            flip,
+            "--drop-rate",
+            drop,
+            "--seed",
+            seed,
+            "--log",
+            arg(&log),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout);
+        let faults = text
+            .lines()
+            .find(|l| l.starts_with("faults: "))
+            .unwrap_or_else(|| panic!("no faults line in {text}"));
+        // "… damaged about A % of the bytes … measured on the line to the device: B %"
+        let percents: Vec<f64> = faults
+            .split_whitespace()
+            .filter_map(|w| w.parse::<f64>().ok())
+            .collect();
+        let (injected, measured) = (percents[0], *percents.last().unwrap());
+        let expected = 100.0
+            * (1.0 - (1.0 - flip.parse::<f64>().unwrap()) * (1.0 - drop.parse::<f64>().unwrap()));
+        assert!((injected - expected).abs() < 1e-3, "{faults}");
+        // Hundreds of damaged frames: within a third of the injected rate (the adaptive
+        // estimate the link sizes its batches by was 3 to 6 times it).
+        assert!(
+            (measured / injected - 1.0).abs() < 0.35,
+            "flip {flip} drop {drop}: {faults}"
+        );
+    }
+}
+
+#[test]
+fn a_replay_that_gives_up_on_firmware_sim_does_not_advise_resuming_its_dead_pty() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let file = generate(dir.path(), "r.csv", 10);
+    let log = dir.path().join("r.tlm");
+    let out = lssi(&[
+        "replay",
+        &file,
+        "--drop-rate",
+        "0.3",
+        "--deadline",
+        "1",
+        "--log",
+        arg(&log),
+    ]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let last = last_line(&err);
+    assert!(last.contains("no progress for"), "{err}");
+    assert!(!last.contains("--resume"), "{last}");
+    assert!(
+        last.contains("firmware-sim ran on that pty for this replay only"),
+        "{last}"
+    );
+}

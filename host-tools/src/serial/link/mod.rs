@@ -109,8 +109,15 @@ pub struct LinkStats {
     pub stream_seconds: f64,
     /// Times the link went back and resent the batches in flight (after a nak or a timeout).
     pub go_backs: u64,
-    /// The byte error rate those losses imply, recently (what the batch length follows).
+    /// The byte error rate those losses imply, recently (what the batch length follows): an
+    /// overestimate under go-back-N, which also resends the intact frames behind a lost one.
     pub byte_error_rate: f64,
+    /// The byte error rate of the line to the device, from the frames the device received
+    /// damaged (its CRC/COBS counter against those it decoded, from its last health report):
+    /// b = 1 − (1 − damaged / received)^(1 / mean frame length). What firmware-sim's
+    /// `--flip-rate` plus `--drop-rate` (plus a burst per 4096 bytes with `--burst`) inject per
+    /// byte. 0 before the device has reported its health.
+    pub line_error_rate: f64,
     /// The batch length and window in use at the end.
     pub batch_len: usize,
     /// The window in use at the end.
@@ -124,6 +131,19 @@ pub struct LinkStats {
 }
 
 impl LinkStats {
+    /// The byte error rate of the line to the device that `health` implies (see
+    /// [`LinkStats::line_error_rate`]), with the frames and bytes sent so far.
+    pub fn line_error_rate_of(&self, health: &Health) -> f64 {
+        let damaged = f64::from(health.crc_errors);
+        let received = damaged + f64::from(health.frames_ok);
+        if received <= 0.0 || self.frames_sent == 0 || damaged <= 0.0 {
+            return 0.0;
+        }
+        let mean_len = (self.bytes_sent as f64 / self.frames_sent as f64).max(1.0);
+        let crossed = (1.0 - damaged / received).max(1e-12);
+        1.0 - crossed.powf(1.0 / mean_len)
+    }
+
     /// Wire bytes per sample (the sample frames' bytes over the samples).
     pub fn bytes_per_sample(&self) -> f64 {
         if self.samples_sent > 0 {

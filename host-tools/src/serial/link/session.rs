@@ -322,9 +322,15 @@ impl<'a> Link<'a> {
 
     /// The error that ends a link without progress, with what it measured.
     pub(super) fn deadline(&self, waiting_for: &'static str, waited: Duration) -> LinkError {
-        let (frame_loss, byte_error_rate) = match &self.adapt {
+        let (frame_loss, adapted) = match &self.adapt {
             Some(adapt) => (adapt.frame_loss(), adapt.byte_error_rate()),
             None => (0.0, 0.0),
+        };
+        // The device's own count of damaged frames when it has reported one (the adaptive
+        // estimate overstates the rate: go-back-N resends intact frames too).
+        let byte_error_rate = match &self.health {
+            Some(health) if health.frames_ok > 0 => self.stats.line_error_rate_of(health),
+            _ => adapted,
         };
         LinkError::Deadline {
             port: self.port.clone(),
@@ -511,6 +517,7 @@ impl<'a> Link<'a> {
         }
         self.stats.samples_lost = self.stats.samples - counted;
         self.stats.crc_errors = u64::from(health.crc_errors) + self.stats.rx_crc_errors;
+        self.stats.line_error_rate = self.stats.line_error_rate_of(&health);
         self.stats.duplicates = u64::from(health.duplicates);
         Ok((model, health))
     }
