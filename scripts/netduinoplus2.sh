@@ -4,7 +4,7 @@
 # (an STM32F405; `--no-default-features --features netduinoplus2`, see
 # crates/lssi-f411/src/netduino.rs), booted with its USART1 on a pty, and listened to by
 # `lssi monitor --port <pty>`, as a user listens to a board. Checks, from the frames alone:
-#   - Health frames decode (at least 5), and the device's sample count grows;
+#   - Health frames decode (at least 4), and the device's sample count grows;
 #   - TIM2 samples at its rate: 200 rows (10 kHz conversions decimated by 50) between two
 #     Health frames a second apart on the device's clock (TIM5), within 2 %; no overrun;
 #   - the rows come from ADC1: QEMU's ADC gives a ramp over the full scale, whose mean the
@@ -13,10 +13,11 @@
 #     counter) a conversion; without its `wfi` it would spin dozens.
 # QEMU runs with -icount (guest time from instructions: the checks do not depend on the
 # host's speed) and sleep=off (idle time skipped: the guest runs faster than real time).
-# Usage: bash scripts/netduinoplus2.sh [SECONDS]   (listens SECONDS of wall time, default 12)
+# Usage: bash scripts/netduinoplus2.sh [SECONDS]   (listens SECONDS of wall time, default 15;
+# the guest runs 0.3-2x real time depending on the host's load)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-seconds=${1:-12}
+seconds=${1:-15}
 command -v qemu-system-arm >/dev/null || { echo "qemu-system-arm is not installed (apt-get install qemu-system-arm)." >&2; exit 2; }
 rustup target add thumbv7em-none-eabihf >/dev/null
 
@@ -76,8 +77,8 @@ models = [f for f in frames if f.get("kind") == "model"]
 failures = []
 ADC_HZ, ROW_HZ, VREF = 10_000, 200, 3.3
 print(f"frames decoded: {len(frames)} ({len(health)} Health, {len(models)} Model) in {end - start:.1f} s")
-if len(health) < 5:
-    print(f"FAIL: {len(health)} Health frames decoded (at least 5 expected)")
+if len(health) < 4:
+    print(f"FAIL: {len(health)} Health frames decoded (at least 4 expected)")
     sys.exit(1)
 rows = [h["samples"] + h["rejected"] for h in health]
 steps = [b - a for a, b in zip(rows, rows[1:])]
@@ -106,8 +107,8 @@ if last["sample_rate_hz"] != ROW_HZ:
     failures.append(f"the device reports {last['sample_rate_hz']} Hz rows, not {ROW_HZ}")
 conversions = rows[-1] * (ADC_HZ // ROW_HZ)
 passes = last["watchdog"] / conversions
-print(f"main-loop passes a conversion: {passes:.3f} ({last['watchdog']} passes, ~{conversions} conversions): "
-      f"it sleeps (wfi) until the next interrupt")
+print(f"main-loop passes a conversion: {passes:.3f} ({last['watchdog']} passes, ~{conversions} conversions; "
+      f"at most 2 if it sleeps (wfi) until the next interrupt)")
 if passes > 2.0:
     failures.append(f"{passes:.1f} main-loop passes a conversion: it does not sleep between samples")
 if not models:
