@@ -17,15 +17,27 @@
 //!
 //! At power-up it starts from the configuration a host last sent (kept in flash sector 7,
 //! [`store`]), or else from the image's own.
+//!
+//! Built with `--no-default-features --features netduinoplus2`, the same application runs
+//! on QEMU's `netduinoplus2` machine (an STM32F405): see [`netduino`] for what differs.
 
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
+#[cfg(all(feature = "stm32f411", feature = "netduinoplus2"))]
+compile_error!(
+    "choose one part: the default (stm32f411) or `--no-default-features --features netduinoplus2`"
+);
+#[cfg(not(any(feature = "stm32f411", feature = "netduinoplus2")))]
+compile_error!("choose a part: the default feature stm32f411, or netduinoplus2 (QEMU)");
+
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use cortex_m::peripheral::{DWT, NVIC};
+#[cfg(not(feature = "netduinoplus2"))]
+use cortex_m::peripheral::DWT;
+use cortex_m::peripheral::NVIC;
 use cortex_m_rt::entry;
 use critical_section::Mutex;
 use defmt_rtt as _;
@@ -37,19 +49,26 @@ use lssi_device::standalone::{
     Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use panic_probe as _;
-use stm32f4xx_hal::flash::LockedFlash;
+#[cfg(not(feature = "netduinoplus2"))]
 use stm32f4xx_hal::{
     adc::{
         Adc,
         config::{AdcConfig, SampleTime},
     },
+    flash::LockedFlash,
+    pac::ADC1,
+};
+use stm32f4xx_hal::{
     gpio::{Analog, PA0},
-    pac::{self, ADC1, Interrupt, TIM2, USART1, interrupt},
+    pac::{self, Interrupt, TIM2, USART1, interrupt},
     prelude::*,
     serial::{Rx, Tx},
     timer::{CounterHz, Event as TimerEvent},
 };
 
+#[cfg(feature = "netduinoplus2")]
+mod netduino;
+#[cfg(not(feature = "netduinoplus2"))]
 mod store;
 
 /// Window capacity, library capacity, channels (x only: one ADC channel).
@@ -57,7 +76,11 @@ const W: usize = 256;
 const P: usize = 16;
 const C: usize = 1;
 /// The core clock (the DWT cycle counter counts it).
+#[cfg(not(feature = "netduinoplus2"))]
 const CORE_HZ: u32 = 96_000_000;
+/// The clock's rate: TIM5's ticks under QEMU (no DWT cycle counter there).
+#[cfg(feature = "netduinoplus2")]
+const CORE_HZ: u32 = netduino::CLOCK_HZ;
 /// The ADC's conversion rate (TIM2): what the anti-alias filter in front of PA0 needs.
 const RATE_HZ: u32 = 10_000;
 /// The row rate of the image's configuration: the conversions are decimated by
@@ -82,7 +105,11 @@ static RX_LOST: AtomicU32 = AtomicU32::new(0);
 /// What TIM2's interrupt owns.
 struct Sensor {
     timer: CounterHz<TIM2>,
+    #[cfg(not(feature = "netduinoplus2"))]
     adc: Adc<ADC1>,
+    #[cfg(feature = "netduinoplus2")]
+    adc: netduino::Converter,
+    #[cfg_attr(feature = "netduinoplus2", allow(dead_code))]
     pin: PA0<Analog>,
     sampler: Sampler<'static>,
 }
@@ -95,13 +122,17 @@ struct Uart {
     tx_out: Consumer<'static, u8>,
 }
 
-/// The cycle counter: 96 MHz ticks, wrapping every 44 s.
+/// The cycle counter: 96 MHz ticks, wrapping every 44 s (under QEMU, TIM5: virtual
+/// nanoseconds, wrapping every 4.3 s).
 struct BoardClock;
 
 impl Clock for BoardClock {
     const HZ: u32 = CORE_HZ;
     fn now(&self) -> u32 {
-        DWT::cycle_count()
+        #[cfg(not(feature = "netduinoplus2"))]
+        return DWT::cycle_count();
+        #[cfg(feature = "netduinoplus2")]
+        return netduino::now();
     }
 }
 
@@ -126,13 +157,23 @@ fn decimator_for(config: &Config) -> Option<Decimator> {
 
 #[entry]
 fn main() -> ! {
+    #[cfg_attr(feature = "netduinoplus2", allow(unused_mut))]
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         defmt::panic!("peripherals taken twice")
     };
-    cp.DCB.enable_trace();
-    cp.DWT.enable_cycle_counter();
-    let rcc = dp.RCC.constrain();
-    let clocks = rcc.cfgr.use_hse(25.MHz()).sysclk(CORE_HZ.Hz()).freeze();
+    #[cfg(not(feature = "netduinoplus2"))]
+    let clocks = {
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+        let rcc = dp.RCC.constrain();
+        rcc.cfgr.use_hse(25.MHz()).sysclk(CORE_HZ.Hz()).freeze()
+    };
+    // The HSI (16 MHz) without the PLL: nothing waits on an RCC ready bit QEMU never sets.
+    #[cfg(feature = "netduinoplus2")]
+    let clocks = {
+        let rcc = dp.RCC.constrain();
+        rcc.cfgr.freeze()
+    };
 
     let engine = cortex_m::singleton!(: Id = Engine::new());
     let snapshot = cortex_m::singleton!(: Snapshot<f32, P> = Snapshot::empty());
@@ -144,7 +185,9 @@ fn main() -> ! {
     else {
         defmt::panic!("start-up ran twice")
     };
+    #[cfg(not(feature = "netduinoplus2"))]
     let mut flash = LockedFlash::new(dp.FLASH);
+    #[cfg(not(feature = "netduinoplus2"))]
     let (mut config, duty) = match store::load(&flash) {
         Ok(stored) => stored,
         Err(why) => {
@@ -152,6 +195,8 @@ fn main() -> ! {
             (default_config(), None)
         }
     };
+    #[cfg(feature = "netduinoplus2")]
+    let (mut config, duty) = (default_config(), None);
     let configured = match decimator_for(&config) {
         Some(d) => engine
             .configure_at(config, d.time_offset(f64::from(RATE_HZ)))
@@ -193,7 +238,10 @@ fn main() -> ! {
 
     let gpioa = dp.GPIOA.split();
     let pin = gpioa.pa0.into_analog();
+    #[cfg(not(feature = "netduinoplus2"))]
     let adc = Adc::adc1(dp.ADC1, true, AdcConfig::default());
+    #[cfg(feature = "netduinoplus2")]
+    let adc = netduino::Converter::new(dp.ADC1);
     let Ok(serial) = dp
         .USART1
         .serial((gpioa.pa9, gpioa.pa10), 921_600.bps(), &clocks)
@@ -207,6 +255,8 @@ fn main() -> ! {
         defmt::panic!("TIM2 cannot run at {=u32} Hz", RATE_HZ);
     }
     timer.listen(TimerEvent::Update);
+    #[cfg(feature = "netduinoplus2")]
+    netduino::start_sampling(RATE_HZ);
 
     let mut sampler = Sampler::new(producer);
     sampler.set_decimator(decimator);
@@ -224,8 +274,15 @@ fn main() -> ! {
             tx_out,
         });
     });
+    #[cfg(not(feature = "netduinoplus2"))]
     defmt::info!(
         "lssi on STM32F411: {=u32} Hz on PA0 decimated by {=u32} to rows, frames on USART1",
+        RATE_HZ,
+        decimator.factor()
+    );
+    #[cfg(feature = "netduinoplus2")]
+    defmt::info!(
+        "lssi on STM32F405 (QEMU netduinoplus2): {=u32} Hz on PA0 decimated by {=u32} to rows, frames on USART1",
         RATE_HZ,
         decimator.factor()
     );
@@ -259,7 +316,13 @@ fn main() -> ! {
             NVIC::pend(Interrupt::EXTI1)
         });
         if let Some(accepted) = reporter.take_accepted() {
+            #[cfg(not(feature = "netduinoplus2"))]
             keep(&mut flash, &accepted);
+            #[cfg(feature = "netduinoplus2")]
+            defmt::info!(
+                "configuration not kept: QEMU has no flash interface ({=usize} bytes)",
+                core::mem::size_of_val(&accepted)
+            );
         }
         if idle {
             cortex_m::interrupt::free(|_| {
@@ -271,6 +334,7 @@ fn main() -> ! {
     }
 }
 
+#[cfg(not(feature = "netduinoplus2"))]
 /// Keeps a host's configuration in flash. The erase stalls every interrupt for about a
 /// second: the samples TIM2 could not take meanwhile are counted as overruns (the
 /// identifier restarts with this configuration anyway).
@@ -336,7 +400,10 @@ fn TIM2() {
                 };
                 return sensor.sampler.convert(stamp, idle, &SHARED);
             }
+            #[cfg(not(feature = "netduinoplus2"))]
             let code = sensor.adc.convert(&sensor.pin, SampleTime::Cycles_56);
+            #[cfg(feature = "netduinoplus2")]
+            let code = sensor.adc.convert();
             // A reading at either rail is saturated: passed on as NaN, which the identifier
             // counts as rejected and skips like a gap (sampling goes on).
             let x = if code == 0 || f32::from(code) >= FULL_SCALE {
