@@ -264,8 +264,9 @@ pub fn configure(
             None => {
                 estimated = true;
                 // A broken time axis is named as such, not as a reason to give --omega.
-                estimate_omega(recording, &config)
-                    .map_err(|e| time_axis(recording).map_or(e, IdentifyError))?
+                estimate_omega(recording, &config).map_err(|e| {
+                    time_axis(recording).map_or(e, |why| IdentifyError(format!("{file}: {why}")))
+                })?
             }
         };
     }
@@ -286,8 +287,11 @@ pub fn configure(
     if estimated {
         config.omega = polish::polish_omega(recording, &config, config.omega);
     }
-    crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path)
-        .map_err(|e| time_axis(recording).map_or(e, IdentifyError))?;
+    crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path).map_err(|e| {
+        time_axis(recording).map_or(e, |why| {
+            IdentifyError(format!("{file}: too broken to identify: {why}"))
+        })
+    })?;
     config
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
@@ -296,10 +300,10 @@ pub fn configure(
 
 /// A time column that is not a regular grid, named: rounded to too few decimals (steps of 0),
 /// samples dropped (steps of two or more periods) or jittered (steps off the median by more
-/// than half of it), when such steps are at least 1 % of them; `None` otherwise. Said when the
-/// recording cannot be identified for it (its clean stretches too short).
+/// than half of it), when such steps are at least 1 % of them; `None` otherwise. Said (after
+/// the file's name) when the recording cannot be identified for it (its clean stretches too
+/// short).
 pub fn time_axis(recording: &Recording) -> Option<String> {
-    let file = recording.path.display();
     let t: Vec<(usize, f64)> = recording
         .t
         .iter()
@@ -345,7 +349,7 @@ pub fn time_axis(recording: &Recording) -> Option<String> {
         rounded.filter(|&d| 10f64.powi(-d) >= 0.5 * mean && early.len() >= gaps.len().max(1))
     {
         return Some(format!(
-            "{file}: the time column is rounded to {d} decimal{} (steps of {:e} s), coarser than the sample period (about {mean:.4e} s): {} steps are 0 or under half the median step ({}), {end}: write t with more digits.",
+            "the time column is rounded to {d} decimal{} (steps of {:e} s), coarser than the sample period (about {mean:.4e} s): {} steps are 0 or under half the median step ({}), {end}: write t with more digits.",
             if d == 1 { "" } else { "s" },
             10f64.powi(-d),
             early.len(),
@@ -360,8 +364,13 @@ pub fn time_axis(recording: &Recording) -> Option<String> {
         let rows: Vec<usize> = gaps.iter().map(|g| g.0).collect();
         let largest = gaps.iter().map(|g| g.1).fold(0.0, f64::max);
         return Some(format!(
-            "{file}: the time column has gaps: {} steps are 2× to {largest:.0}× the median step ({dt:.4e} s), at {} (samples dropped), {end}.",
+            "the time column has gaps: {} steps are {} the median step ({dt:.4e} s), at {} (samples dropped), {end}.",
             gaps.len(),
+            if largest.round() > 2.0 {
+                format!("2× to {largest:.0}×")
+            } else {
+                "2×".to_owned()
+            },
             where_text(&rows)
         ));
     }
@@ -372,7 +381,7 @@ pub fn time_axis(recording: &Recording) -> Option<String> {
     rows.extend(gaps.iter().map(|g| g.0));
     rows.sort_unstable();
     Some(format!(
-        "{file}: the time column is jittered: {} steps are off the median step ({dt:.4e} s) by more than half of it, at {} (the median step is off by {spread:.0} %), {end}: resample onto an even grid.",
+        "the time column is jittered: {} steps are off the median step ({dt:.4e} s) by more than half of it, at {} (the median step is off by {spread:.0} %), {end}: resample onto an even grid.",
         rows.len(),
         where_text(&rows)
     ))
@@ -477,8 +486,12 @@ pub struct Reference {
 }
 
 impl Reference {
-    /// The references of a recording's x and v.
+    /// The references of a recording's x and v: none for an x that is constant, or nearly
+    /// (the gate names it as it is: [`quality::constant`]).
     pub fn of(recording: &Recording) -> Self {
+        if quality::constant(recording).is_some() {
+            return Self::default();
+        }
         Self {
             x: Self::channel(&recording.x),
             v: recording.v.as_deref().map_or(0.0, Self::channel),

@@ -169,7 +169,8 @@ fn a_chirp_and_white_noise_are_withheld_for_their_simulation() {
     let chirp = write(dir.path(), "chirp.csv", 40_001, 2000.0, |t| {
         1e-3 * (2.0 * std::f64::consts::PI * (t + 0.5 * 9.0 / 20.0 * t * t)).sin()
     });
-    assert_withheld(&chirp, "the model's simulation misses the recording");
+    // A chirp is a swept forcing with no u column: named as such (tests/it/sweep.rs).
+    assert_withheld(&chirp, "the forcing sweeps in frequency (a chirp)");
     let mut g = Gauss(11);
     let noise = write(dir.path(), "noise.csv", 40_001, 2000.0, |_| 1e-3 * g.next());
     assert_withheld(&noise, "the model's simulation cannot follow the recording");
