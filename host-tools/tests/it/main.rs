@@ -25,6 +25,7 @@ mod replay_resume;
 mod spikes;
 mod standard_errors;
 mod stream;
+mod stream_gate;
 mod sweep;
 mod telemetry_fuzz;
 mod time_axis;

@@ -241,15 +241,23 @@ pub fn identify_command(
     let mut warnings = identify::batch::warnings(&report);
     if !summary.quality.passed() {
         warnings.extend(summary.quality.failures.iter().cloned());
-        if json {
-            crate::outln!("{}", identify::json_text(&report, None, &warnings));
-        }
-        return Err(crate::error::CliError::NoDynamics(format!(
+        let sentence = format!(
             "no deterministic dynamics found in {} (its first {} rows, on which the quality gate of a file read in chunks runs): {}.",
             path.display(),
             summary.gated_rows,
             summary.quality.failures.join("; ")
-        )));
+        );
+        if json {
+            // As for a file in memory: no "terms" at the top, the model under
+            // "withheld_model" beside why.
+            crate::outln!(
+                "{{\"withheld\":true,\"reason\":{},\"withheld_model\":{},\"warnings\":{}}}",
+                serde_json::Value::from(sentence.as_str()),
+                identify::json_text(&report, None, &[]),
+                serde_json::Value::from(warnings)
+            );
+        }
+        return Err(crate::error::CliError::NoDynamics(sentence));
     }
     if let Some(note) = note {
         eprintln!("lssi: warning: {note}.");
