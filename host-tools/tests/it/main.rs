@@ -20,5 +20,6 @@ mod replay_link;
 mod replay_resume;
 mod standard_errors;
 mod stream;
+mod system;
 mod telemetry_fuzz;
 mod track;
