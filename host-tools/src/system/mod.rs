@@ -10,7 +10,7 @@
 //! The configuration is the single-equation one ([`crate::identify::configure`]: sample
 //! period, derivative window, weak form, Ω), derived from the mechanical channels. A
 //! velocity recorded without a displacement is integrated, its drift removed by a centred
-//! moving average ten periods of v long ([`integrate_velocity`]), and the report says so.
+//! moving average two hundred periods of v long ([`integrate_velocity`]), and the report says so.
 //!
 //! - [`report`]: the text and JSON of a system's model, with standard errors.
 //! - [`simulate`]: a system model's free run from a recording's first state and inputs
@@ -137,7 +137,11 @@ fn header_of(path: &Path) -> Result<Option<Vec<String>>, CliError> {
     if reader.read_line(&mut line).is_err() {
         return Ok(None);
     }
-    let names: Vec<String> = line.trim().split(',').map(|s| s.trim().to_owned()).collect();
+    let names: Vec<String> = line
+        .trim()
+        .split(',')
+        .map(|s| s.trim().to_owned())
+        .collect();
     Ok((!line.trim().is_empty()).then_some(names))
 }
 
@@ -271,7 +275,7 @@ fn read_system(
             (
                 x,
                 Some(format!(
-                    "x is v integrated, its drift removed by a centred moving average of {width} samples (ten periods of v): the model is in x about its mean"
+                    "x is v integrated, its drift removed (the least-squares line, then a centred moving average of {width} samples, two hundred periods of v): the model is in x about its mean"
                 )),
             )
         }
@@ -304,9 +308,9 @@ fn read_system(
     })
 }
 
-/// A velocity integrated (trapezoids) into a displacement, its drift removed by a centred
-/// moving average ten periods of v long (the period from v's zero crossings, at least 64
-/// samples); returns x and the width. Non-finite values count as 0.
+/// A velocity integrated (trapezoids) into a displacement, its drift removed (the
+/// least-squares line, then a centred moving average two hundred periods of v long (the period from v's zero crossings, at least 64
+/// samples)); returns x and the width. Non-finite values count as 0.
 pub fn integrate_velocity(t: &[f64], v: &[f64]) -> (Vec<f64>, usize) {
     let n = v.len();
     let clean: Vec<f64> = v
@@ -321,14 +325,25 @@ pub fn integrate_velocity(t: &[f64], v: &[f64]) -> (Vec<f64>, usize) {
         .count()
         .max(1);
     let period = 2 * n / crossings;
-    let width = (10 * period).clamp(64, n.max(64)) | 1;
+    let width = (200 * period).clamp(64, n.max(64)) | 1;
     let mut x = vec![0.0; n];
     for i in 1..n {
         let dt = t[i] - t[i - 1];
         let dt = if dt.is_finite() { dt } else { 0.0 };
         x[i] = x[i - 1] + 0.5 * dt * (centred[i] + centred[i - 1]);
     }
-    (high_pass(&x, width), width)
+    // The least-squares line first (a bias of v), then the slow wander.
+    let tm = t.iter().sum::<f64>() / n.max(1) as f64;
+    let xm = x.iter().sum::<f64>() / n.max(1) as f64;
+    let sxy: f64 = t.iter().zip(&x).map(|(a, b)| (a - tm) * (b - xm)).sum();
+    let sxx: f64 = t.iter().map(|a| (a - tm).powi(2)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let line: Vec<f64> = t
+        .iter()
+        .zip(&x)
+        .map(|(a, b)| b - xm - slope * (a - tm))
+        .collect();
+    (high_pass(&line, width), width)
 }
 
 /// `s` minus its centred moving average of `width` samples (shorter at the ends).

@@ -64,8 +64,10 @@ pub struct Harvester {
     pub power_predicted_w: Option<f64>,
     /// Predicted mean power against the load.
     pub load_sweep: Vec<PowerPoint>,
-    /// The load of the most power in the sweep, ohms.
+    /// The load of the most power (the sweep's best, refined between its neighbours), ohms.
     pub optimal_load_ohms: Option<f64>,
+    /// The predicted mean power at the optimal load, W.
+    pub optimal_power_w: Option<f64>,
     /// Predicted mean power against the forcing frequency (rad/s).
     pub frequency_sweep: Vec<PowerPoint>,
     /// What could not be computed and why.
@@ -147,6 +149,7 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
         power_predicted_w: None,
         load_sweep: Vec::new(),
         optimal_load_ohms: None,
+        optimal_power_w: None,
         frequency_sweep: Vec::new(),
         notes: Vec::new(),
     };
@@ -249,14 +252,48 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
             }
             // The power at R' is V²/R'.
             let p = power_of(&model, &u).map(|p| p * ohms / load);
-            h.load_sweep.push(PowerPoint { at: load, power_w: p });
+            h.load_sweep.push(PowerPoint {
+                at: load,
+                power_w: p,
+            });
         }
-        h.optimal_load_ohms = h
+        let power_at = |load: f64| -> Option<f64> {
+            let mut model = sim.clone();
+            for (t, c) in model.equations[1 + kv].iter_mut() {
+                if *t == v_term {
+                    *c = -1.0 / (load * cp);
+                }
+            }
+            power_of(&model, &u).map(|p| p * ohms / load)
+        };
+        let best = h
             .load_sweep
             .iter()
-            .filter_map(|p| Some((p.at, p.power_w?)))
+            .enumerate()
+            .filter_map(|(i, p)| Some((i, p.power_w?)))
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .map(|p| p.0);
+        // Refined between the grid's neighbours of the best load (golden section on ln R).
+        if let Some(i) = best {
+            let lo = h.load_sweep[i.saturating_sub(1)].at.ln();
+            let hi = h.load_sweep[(i + 1).min(h.load_sweep.len() - 1)].at.ln();
+            let at = crate::identify::golden(
+                |r| power_at(r.exp()).map_or(f64::INFINITY, |p| -p),
+                lo,
+                hi,
+                12,
+            )
+            .exp();
+            let refined = power_at(at);
+            let grid = h.load_sweep[i].power_w;
+            if refined.zip(grid).is_some_and(|(r, g)| r >= g) {
+                h.optimal_load_ohms = Some(at);
+                h.optimal_power_w = refined;
+            } else {
+                h.optimal_load_ohms = Some(h.load_sweep[i].at);
+                h.optimal_power_w = grid;
+            }
+        }
     }
     // The frequency sweep.
     let has_harmonics = sim
@@ -287,9 +324,8 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
             });
         }
     } else {
-        h.notes.push(
-            "the model has no forcing term (harmonic or u), so no frequency sweep".into(),
-        );
+        h.notes
+            .push("the model has no forcing term (harmonic or u), so no frequency sweep".into());
     }
     h
 }
@@ -329,9 +365,7 @@ impl Harvester {
         if !self.load_sweep.is_empty() {
             out.push_str("\n  load R (Ω)    predicted mean power (W)\n");
             for p in &self.load_sweep {
-                let mark = if Some(p.at) == self.optimal_load_ohms {
-                    "  <- optimal"
-                } else if p.at == self.load_ohms {
+                let mark = if p.at == self.load_ohms {
                     "  <- recorded"
                 } else {
                     ""
@@ -345,7 +379,9 @@ impl Harvester {
             }
         }
         if !self.frequency_sweep.is_empty() {
-            out.push_str("\n  Ω (rad/s)     f (Hz)      predicted mean power (W) at the recorded load\n");
+            out.push_str(
+                "\n  Ω (rad/s)     f (Hz)      predicted mean power (W) at the recorded load\n",
+            );
             for p in &self.frequency_sweep {
                 out.push_str(&format!(
                     "  {:<12.5}  {:<10.4}  {}\n",

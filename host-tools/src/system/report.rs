@@ -297,7 +297,11 @@ fn rows(data: &SystemData, len: usize, degree: usize, dt: f64) -> Option<Vec<Row
         let (xh, vh, ah) = match &r.v {
             Some(v) => {
                 let v = &v[window.clone()];
-                (taps.apply(0, x, &[]), taps.apply(0, v, &[]), taps.apply(1, v, &[]))
+                (
+                    taps.apply(0, x, &[]),
+                    taps.apply(0, v, &[]),
+                    taps.apply(1, v, &[]),
+                )
             }
             None => (
                 taps.apply(0, x, &[]),
@@ -343,7 +347,8 @@ pub fn add_standard_errors(report: &mut SystemReport, data: &SystemData) {
         source.len(),
     );
     let Some(choice) = choice else {
-        report.standard_errors = "no standard errors: too few samples for a derivative window".into();
+        report.standard_errors =
+            "no standard errors: too few samples for a derivative window".into();
         return;
     };
     let Some(rows) = rows(data, choice.window, usize::from(choice.degree), dt) else {
@@ -499,6 +504,9 @@ mod tests {
         let sxx: f64 = s.iter().map(|q| (q - mean).powi(2)).sum();
         // The residuals are ±1 around the fitted line (nearly the true one): σ² ≈ 100 / 98.
         let expected = (100.0 / 98.0 / sxx).sqrt();
-        assert!((se[1] / expected - 1.0).abs() < 0.01, "{se:?} vs {expected}");
+        assert!(
+            (se[1] / expected - 1.0).abs() < 0.01,
+            "{se:?} vs {expected}"
+        );
     }
 }

@@ -50,7 +50,11 @@ impl SimTerm {
                 } else {
                     inner.parse().ok()?
                 };
-                return Some(if sin { SimTerm::Sin(w) } else { SimTerm::Cos(w) });
+                return Some(if sin {
+                    SimTerm::Sin(w)
+                } else {
+                    SimTerm::Cos(w)
+                });
             }
         }
         let mut powers = [0u8; 4];
@@ -225,9 +229,9 @@ impl SystemSim {
     /// The state's derivative.
     fn rate(&self, s: &[f64; 4], t: f64, u: f64) -> [f64; 4] {
         let f = |k: usize| -> f64 {
-            self.equations
-                .get(k)
-                .map_or(0.0, |eq| eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum())
+            self.equations.get(k).map_or(0.0, |eq| {
+                eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
+            })
         };
         [s[1], f(0), f(1), f(2)]
     }
@@ -343,7 +347,10 @@ pub fn simulate_command(
         return Err(CliError::Input(format!(
             "{}: the model's electrical states are {:?}, but the file's are {:?}.",
             file.display(),
-            sim.electrical.iter().map(|e| e.symbol()).collect::<Vec<_>>(),
+            sim.electrical
+                .iter()
+                .map(|e| e.symbol())
+                .collect::<Vec<_>>(),
             kinds.iter().map(|e| e.symbol()).collect::<Vec<_>>()
         )));
     }
@@ -457,7 +464,17 @@ mod tests {
     #[test]
     fn names_round_trip() {
         let e = [Electrical::Voltage];
-        for name in ["1", "u", "x", "v^3", "x*V", "x^2*v", "V", "cos(6.28319t)", "sin(t)"] {
+        for name in [
+            "1",
+            "u",
+            "x",
+            "v^3",
+            "x*V",
+            "x^2*v",
+            "V",
+            "cos(6.28319t)",
+            "sin(t)",
+        ] {
             let t = SimTerm::parse(name, &e).unwrap();
             assert_eq!(t.name(&e), name);
         }
