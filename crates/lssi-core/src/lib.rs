@@ -29,6 +29,7 @@ mod weak;
 pub use config::{Channels, Config, ConfigError};
 pub use identifier::system::{
     SystemConfig, SystemConfigError, SystemIdentifier, SystemModel, SystemSample, SystemSlot,
+    SystemSnapshot,
 };
 pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Snapshot};
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, RowTables, Term};

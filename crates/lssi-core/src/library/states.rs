@@ -188,6 +188,21 @@ impl StateTerm {
     }
 }
 
+impl StateTerm {
+    /// A value that `Display`s as the term's name (see [`StateTerm::write_name`]).
+    pub fn name(
+        &self,
+        omega: f64,
+        electrical: &[Option<Electrical>; MAX_ELECTRICAL],
+    ) -> StateTermName {
+        StateTermName {
+            term: *self,
+            omega,
+            electrical: *electrical,
+        }
+    }
+}
+
 /// A term with what names it, displayed as its name.
 #[derive(Clone, Copy, Debug)]
 pub struct StateTermName {

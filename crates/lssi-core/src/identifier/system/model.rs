@@ -1,6 +1,6 @@
 //! What a system's screening reports: one sparse equation per state over the shared library.
 
-use crate::library::{Electrical, MAX_ELECTRICAL, StateTerm};
+use crate::library::{Electrical, MAX_ELECTRICAL, StateTerm, StateTermName};
 use crate::model::{MAX_SOLUTIONS, Solution};
 use crate::real::Real;
 use core::fmt;
@@ -84,6 +84,12 @@ impl<T: Real, const P: usize, const E: usize> SystemModel<T, P, E> {
     pub fn coefficient(&self, target: Target, term: StateTerm) -> Option<T> {
         let j = self.terms.iter().position(|&t| t == term)?;
         self.equation(target)?.coefficients.get(j).copied()
+    }
+
+    /// Column `j`'s name (`x*V`), as the command line and JSON write it.
+    pub fn term_name(&self, j: usize) -> Option<StateTermName> {
+        let term = self.terms.get(j)?;
+        Some(term.name(self.omega, &self.electrical))
     }
 
     /// The active terms of the equation of `target`, with their coefficients, in column

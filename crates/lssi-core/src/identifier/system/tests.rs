@@ -217,11 +217,7 @@ fn errors<T: Real>(
     truth: &[Vec<(&'static str, f64)>; 2],
 ) -> [(Vec<f64>, Vec<String>); 2] {
     let names: Vec<String> = (0..model.terms.len())
-        .map(|j| {
-            let mut s = String::new();
-            let _ = model.terms[j].write_name(&mut s, model.omega, &model.electrical);
-            s
-        })
+        .map(|j| model.term_name(j).expect("a column").to_string())
         .collect();
     core::array::from_fn(|k| {
         let e = &model.equations[k];
