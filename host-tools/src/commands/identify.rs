@@ -197,14 +197,13 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
     args.check_track_flags()?;
     // A recording with an electrical channel is a system (issue 26; crate::system).
-    if args.more.is_empty()
-        && !args.track
-        && !args.csv
-        && args.quantise.is_none()
-        && let Some(data) =
-            crate::system::read_if_system(&args.file, &args.columns, &args.system.columns)?
-    {
-        return crate::system::identify_command(&data, &options, &args.system, args.json);
+    if args.more.is_empty() && !args.track && !args.csv && args.quantise.is_none() {
+        match crate::system::read_if_system(&args.file, &args.columns, &args.system.columns)? {
+            Some(data) => {
+                return crate::system::identify_command(&data, &options, &args.system, args.json);
+            }
+            None => crate::system::refuse_stray_flags(&args.file, &args.system)?,
+        }
     }
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);

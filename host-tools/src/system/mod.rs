@@ -442,6 +442,25 @@ pub fn run<T: Real>(
     Ok(report)
 }
 
+/// Refuses the system's flags for a recording that is not a system (no electrical column):
+/// they would be ignored.
+pub fn refuse_stray_flags(file: &Path, args: &SystemArgs) -> Result<(), CliError> {
+    let stray = if args.load_ohms.is_some() {
+        Some("--load-ohms")
+    } else if args.coupling_order != 1 {
+        Some("--coupling-order")
+    } else {
+        None
+    };
+    match stray {
+        Some(flag) => Err(CliError::Input(format!(
+            "{}: {flag} applies to a recording with an electrical column (V or i, or one named by --V-col or --i-col), and this one has none.",
+            file.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// `lssi identify FILE` for a recording with an electrical channel: the system's model, as
 /// text or `--json`.
 pub fn identify_command(

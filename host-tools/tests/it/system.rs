@@ -8,6 +8,8 @@
 //! χ V is a combination of x and v, and the data cannot tell them apart; see the core's
 //! system module).
 
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -226,6 +228,9 @@ fn check(json: &Value, truth: &[Vec<(&str, f64)>; 2], tol: f64, label: &str) -> 
     worst
 }
 
+/// A case: label, harvester, rows, the columns recorded, noise, tolerance.
+type Case<'a> = (&'a str, Harvester, &'a [[f64; 5]], &'a [&'a str], f64, f64);
+
 #[test]
 fn piezo_harvesters_come_out_as_their_two_equations() {
     let dir = tempfile::tempdir().unwrap();
@@ -236,7 +241,7 @@ fn piezo_harvesters_come_out_as_their_two_equations() {
     // (−0.05, the smallest term) comes out 10–15 % off at 1 % noise. A bistable x from v
     // is about its time mean, not the symmetric origin: x³ then shows a small spurious x²
     // (see the ignored spread below).
-    let cases: [(&str, Harvester, &[[f64; 5]], &[&str], f64, f64); 6] = [
+    let cases: [Case<'_>; 6] = [
         ("mono x V u clean", MONO, &mono, &["x", "V", "u"], 0.0, 0.01),
         ("mono x V u 1 %", MONO, &mono, &["x", "V", "u"], 0.01, 0.1),
         ("mono v V u 1 %", MONO, &mono, &["v", "V", "u"], 0.01, 0.2),
@@ -284,6 +289,14 @@ fn the_text_report_prints_each_equation_on_its_own_line() {
     let json = identify(&plain, &["--no-refine"]);
     assert_eq!(json["target"], "x''");
     assert!(json.get("equations").is_none());
+    // The system's flags on a recording without an electrical column are refused.
+    let out = lssi(&["identify", plain.to_str().unwrap(), "--load-ohms", "1e5"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        err.contains("--load-ohms applies to a recording with an electrical column"),
+        "{err}"
+    );
     // A named electrical column that is missing is an input error.
     let out = lssi(&["identify", path.to_str().unwrap(), "--V-col", "Vload"]);
     assert_eq!(out.status.code(), Some(2));
