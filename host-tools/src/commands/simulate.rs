@@ -98,9 +98,23 @@ pub fn run(args: &SimulateArgs) -> Result<(), CliError> {
         && value.get("equations").is_some()
     {
         let path = args.model.display().to_string();
+        if let Some(initial) = &args.initial {
+            return Err(CliError::BadFlag {
+                flag: "--initial",
+                value: initial.clone(),
+                requirement:
+                    "left out for a system's model (its initial state is the file's first row)"
+                        .into(),
+            });
+        }
         let out = args.out.as_deref();
         return crate::system::simulate::simulate_command(
-            &value, &path, &args.file, &args.columns, &args.system, out,
+            &value,
+            &path,
+            &args.file,
+            &args.columns,
+            &args.system,
+            out,
         );
     }
     let model = model_from_json(&text, &args.model.display().to_string())?;
