@@ -40,4 +40,5 @@ pub mod plot;
 pub mod recording;
 pub mod serial;
 pub mod synth;
+pub mod system;
 pub mod telemetry;

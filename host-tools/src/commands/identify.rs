@@ -42,6 +42,9 @@ pub struct IdentifyArgs {
     /// Which header names hold which quantity.
     #[command(flatten)]
     pub columns: ColumnNames,
+    /// A system's electrical channels, load and coupling order (issue 26; see crate::system).
+    #[command(flatten)]
+    pub system: crate::system::SystemArgs,
     /// Identify the recording as `lssi replay --encoding i16` sends it: times on a uniform
     /// grid, values rounded to i16 quanta (one scale per channel), so the model is the one
     /// a compact replay must give.
@@ -193,6 +196,15 @@ impl IdentifyArgs {
 pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
     args.check_track_flags()?;
+    // A recording with an electrical channel is a system (issue 26; crate::system).
+    if args.more.is_empty() && !args.track && !args.csv && args.quantise.is_none() {
+        match crate::system::read_if_system(&args.file, &args.columns, &args.system.columns)? {
+            Some(data) => {
+                return crate::system::identify_command(&data, &options, &args.system, args.json);
+            }
+            None => crate::system::refuse_stray_flags(&args.file, &args.system)?,
+        }
+    }
     if !args.more.is_empty() || args.file.is_dir() || args.csv {
         return run_batch(args, &options);
     }

@@ -33,6 +33,9 @@ pub struct SimulateArgs {
     /// Writes t, the simulated x and the recorded x here (CSV).
     #[arg(long, value_name = "OUT.csv")]
     pub out: Option<PathBuf>,
+    /// A system's electrical channels and load (issue 26; see crate::system).
+    #[command(flatten)]
+    pub system: crate::system::SimulateSystemArgs,
 }
 
 /// The model of an `lssi identify --json` object.
@@ -90,6 +93,30 @@ pub fn run(args: &SimulateArgs) -> Result<(), CliError> {
             args.model.display()
         ))
     })?;
+    // A system's model (issue 26): its own free run (crate::system::simulate).
+    if let Ok(value) = serde_json::from_str::<serde_json::Value>(text.lines().next().unwrap_or(""))
+        && value.get("equations").is_some()
+    {
+        let path = args.model.display().to_string();
+        if let Some(initial) = &args.initial {
+            return Err(CliError::BadFlag {
+                flag: "--initial",
+                value: initial.clone(),
+                requirement:
+                    "left out for a system's model (its initial state is the file's first row)"
+                        .into(),
+            });
+        }
+        let out = args.out.as_deref();
+        return crate::system::simulate::simulate_command(
+            &value,
+            &path,
+            &args.file,
+            &args.columns,
+            &args.system,
+            out,
+        );
+    }
     let model = model_from_json(&text, &args.model.display().to_string())?;
     let recording = Recording::read(&args.file, &args.columns)?;
     let file = args.file.display();

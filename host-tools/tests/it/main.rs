@@ -27,6 +27,7 @@ mod standard_errors;
 mod stream;
 mod stream_gate;
 mod sweep;
+mod system;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;

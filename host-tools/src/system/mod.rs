@@ -1,0 +1,510 @@
+//! Systems of equations: a harvester's mechanical equation and its electrical ones, from the
+//! channels a lab records (issue 26).
+//!
+//! A recording with an electrical column (`V`, the voltage across the load, or `i`, the
+//! current; `--V-col`/`--i-col` name them otherwise) is identified as a system by
+//! [`lssi_core::SystemIdentifier`]: `x'' = f` and `V' = g` (or `i' = g`), each sparse over one
+//! shared library of the states x, v, V (and sin/cos kΩt, u). A recording without an
+//! electrical column takes the single-equation path, unchanged.
+//!
+//! The configuration is the single-equation one ([`crate::identify::configure`]: sample
+//! period, derivative window, weak form, Ω), derived from the mechanical channels. A
+//! velocity recorded without a displacement is integrated, its drift removed by a centred
+//! moving average two hundred periods of v long ([`integrate_velocity`]), and the report says so.
+//!
+//! - [`report`]: the text and JSON of a system's model, with standard errors.
+//! - [`simulate`]: a system model's free run from a recording's first state and inputs
+//!   (`lssi simulate` for systems).
+//! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
+
+pub mod power;
+pub mod report;
+pub mod simulate;
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use lssi_core::library::Electrical;
+use lssi_core::{Real, SystemConfig, SystemIdentifier, SystemSample};
+
+use crate::error::CliError;
+use crate::identify::{self, Options};
+use crate::recording::{ColumnNames, Recording};
+pub use report::SystemReport;
+
+/// Window capacity of the host's system identifier (samples), as the single-equation one.
+pub const WINDOW_CAPACITY: usize = identify::WINDOW_CAPACITY;
+/// Shared-library capacity (terms).
+pub const TERM_CAPACITY: usize = 32;
+/// Equations: the mechanical one and up to two electrical ones.
+pub const EQUATIONS: usize = 3;
+/// Ring buffers: x, v, u and two electrical channels.
+pub const RINGS: usize = 5;
+
+/// The host's system identifier.
+pub type HostSystemIdentifier<T> =
+    SystemIdentifier<T, WINDOW_CAPACITY, TERM_CAPACITY, EQUATIONS, RINGS>;
+
+/// Which header names hold the electrical channels.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Args)]
+#[command(next_help_heading = "System (a harvester's electrical channels)")]
+pub struct ElectricalColumns {
+    /// Header name of the voltage across the load [used if a column 'V' exists]: the
+    /// recording is then identified as a system, x'' = … and V' = ….
+    #[arg(long = "V-col", value_name = "NAME")]
+    pub voltage: Option<String>,
+    /// Header name of the current through the coil or load [used if a column 'i' exists]:
+    /// the recording is then identified as a system, x'' = … and i' = ….
+    #[arg(long = "i-col", value_name = "NAME")]
+    pub current: Option<String>,
+}
+
+/// The flags of `lssi identify` for systems.
+#[derive(Debug, Clone, PartialEq, Args)]
+#[command(next_help_heading = "System (a harvester's electrical channels)")]
+pub struct SystemArgs {
+    /// Which header names hold the electrical channels.
+    #[command(flatten)]
+    pub columns: ElectricalColumns,
+    /// The load resistance the voltage was recorded across, ohms: the report adds the
+    /// coupling in physical terms, the mean power, and the predicted power against load and
+    /// forcing frequency.
+    #[arg(long = "load-ohms", value_name = "OHMS")]
+    pub load_ohms: Option<f64>,
+    /// The highest total degree of a term holding an electrical state (1: V; 2: also x*V,
+    /// v*V, V^2; 3).
+    #[arg(long = "coupling-order", value_name = "N", default_value_t = 1)]
+    pub coupling_order: u8,
+}
+
+/// The flags of `lssi simulate` for systems.
+#[derive(Debug, Clone, PartialEq, Args)]
+#[command(next_help_heading = "System (a harvester's electrical channels)")]
+pub struct SimulateSystemArgs {
+    /// Which header names hold the electrical channels.
+    #[command(flatten)]
+    pub columns: ElectricalColumns,
+    /// The load resistance, ohms: the mean power V²/R, simulated and recorded.
+    #[arg(long = "load-ohms", value_name = "OHMS")]
+    pub load_ohms: Option<f64>,
+}
+
+/// One electrical channel of a recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElectricalChannel {
+    /// What it measures.
+    pub kind: Electrical,
+    /// Its header name in the file.
+    pub name: String,
+    /// Its values.
+    pub values: Vec<f64>,
+}
+
+/// A recording with electrical channels: the mechanical part as a [`Recording`] (x
+/// integrated from v when the file has no x), and the electrical channels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemData {
+    /// The mechanical channels (t, x, v, u).
+    pub recording: Recording,
+    /// The electrical channels, in the library's order (V before i).
+    pub electrical: Vec<ElectricalChannel>,
+    /// When x is v integrated: the sentence saying how.
+    pub x_from_v: Option<String>,
+}
+
+impl SystemData {
+    /// The electrical kinds as the core's configuration lists them.
+    pub fn kinds(&self) -> [Option<Electrical>; 2] {
+        let mut kinds = [None; 2];
+        for (k, e) in self.electrical.iter().enumerate().take(2) {
+            kinds[k] = Some(e.kind);
+        }
+        kinds
+    }
+}
+
+/// The header row's names, or `None` for an empty file.
+fn header_of(path: &Path) -> Result<Option<Vec<String>>, CliError> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).map_err(|source| {
+        CliError::Recording(crate::recording::RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    let mut line = String::new();
+    let mut reader = std::io::BufReader::new(file).take(crate::recording::MAX_LINE as u64);
+    if reader.read_line(&mut line).is_err() {
+        return Ok(None);
+    }
+    let names: Vec<String> = line
+        .trim()
+        .split(',')
+        .map(|s| s.trim().to_owned())
+        .collect();
+    Ok((!line.trim().is_empty()).then_some(names))
+}
+
+use std::io::Read;
+
+/// Whether the file at `path` is a system's recording (it has an electrical column, or one
+/// is named by a flag), and if so, reads it. `Ok(None)`: the single-equation path.
+pub fn read_if_system(
+    path: &Path,
+    columns: &ColumnNames,
+    electrical: &ElectricalColumns,
+) -> Result<Option<SystemData>, CliError> {
+    if path.is_dir() {
+        return Ok(None);
+    }
+    let Some(header) = header_of(path)? else {
+        return Ok(None);
+    };
+    let has = |name: &str| header.iter().any(|h| h == name);
+    let pick = |flag: &Option<String>, default: &str, flag_name: &str| match flag {
+        Some(name) if has(name) => Ok(Some(name.clone())),
+        Some(name) => Err(CliError::Input(format!(
+            "{}: there is no column '{name}' ({flag_name} {name}); the header has {}.",
+            path.display(),
+            header.join(", ")
+        ))),
+        None => Ok(has(default).then(|| default.to_owned())),
+    };
+    let voltage = pick(&electrical.voltage, "V", "--V-col")?;
+    let current = pick(&electrical.current, "i", "--i-col")?;
+    if voltage.is_none() && current.is_none() {
+        return Ok(None);
+    }
+    read_system(path, &header, columns, voltage, current).map(Some)
+}
+
+/// Reads every column the system needs.
+fn read_system(
+    path: &Path,
+    header: &[String],
+    columns: &ColumnNames,
+    voltage: Option<String>,
+    current: Option<String>,
+) -> Result<SystemData, CliError> {
+    let file = path.display();
+    let text = std::fs::read_to_string(path).map_err(|source| {
+        CliError::Recording(crate::recording::RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    })?;
+    let index = |name: &str| header.iter().position(|h| h == name);
+    let required = |name: &str, what: &str| {
+        index(name).ok_or_else(|| {
+            CliError::Input(format!(
+                "{file}: there is no column '{name}' ({what}); the header has {}.",
+                header.join(", ")
+            ))
+        })
+    };
+    let optional = |flag: &Option<String>, default: &str, what: &str| match flag {
+        Some(name) => required(name, what).map(Some),
+        None => Ok(index(default)),
+    };
+    let t_col = required(&columns.t, "the time")?;
+    let x_col = if columns.x == "x" {
+        index("x")
+    } else {
+        Some(required(&columns.x, "the displacement")?)
+    };
+    let v_col = optional(&columns.v, "v", "the velocity")?;
+    let u_col = optional(&columns.u, "u", "the excitation")?;
+    if x_col.is_none() && v_col.is_none() {
+        return Err(CliError::Input(format!(
+            "{file}: a system needs a displacement 'x' or a velocity 'v' beside its electrical channel; the header has {} (name them with --x-col or --v-col).",
+            header.join(", ")
+        )));
+    }
+    let mut e_cols = Vec::new();
+    if let Some(v) = &voltage {
+        e_cols.push((Electrical::Voltage, v.clone(), required(v, "the voltage")?));
+    }
+    if let Some(i) = &current {
+        e_cols.push((Electrical::Current, i.clone(), required(i, "the current")?));
+    }
+    let wanted: Vec<usize> = [Some(t_col), x_col, v_col, u_col]
+        .into_iter()
+        .flatten()
+        .chain(e_cols.iter().map(|e| e.2))
+        .collect();
+    let mut data: Vec<Vec<f64>> = vec![Vec::new(); header.len()];
+    for (n, line) in text.lines().enumerate().skip(1) {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields.len() != header.len() {
+            return Err(CliError::Input(format!(
+                "{file}: line {} has {} fields, but the header has {}.",
+                n + 1,
+                fields.len(),
+                header.len()
+            )));
+        }
+        for &c in &wanted {
+            let s = fields[c].trim();
+            let value: f64 = s.parse().map_err(|_| {
+                CliError::Input(format!(
+                    "{file}: line {}, column '{}': {s:?} is not a number.",
+                    n + 1,
+                    header[c]
+                ))
+            })?;
+            data[c].push(value);
+        }
+    }
+    if data[t_col].len() < 64 {
+        return Err(CliError::Input(format!(
+            "{file}: only {} data rows; the identifier needs a few hundred at least.",
+            data[t_col].len()
+        )));
+    }
+    let t = std::mem::take(&mut data[t_col]);
+    let v = v_col.map(|c| data[c].clone());
+    let u = u_col.map(|c| data[c].clone());
+    let (x, x_from_v) = match x_col {
+        Some(c) => (data[c].clone(), None),
+        None => {
+            let v = v.as_deref().unwrap_or_default();
+            let (x, width) = integrate_velocity(&t, v);
+            (
+                x,
+                Some(format!(
+                    "x is v integrated, its drift removed (the least-squares line, then a centred moving average of {width} samples, two hundred periods of v): the model is in x about its mean"
+                )),
+            )
+        }
+    };
+    let electrical = e_cols
+        .into_iter()
+        .map(|(kind, name, c)| ElectricalChannel {
+            kind,
+            name,
+            values: std::mem::take(&mut data[c]),
+        })
+        .collect();
+    let names = ColumnNames {
+        t: columns.t.clone(),
+        x: x_col.map_or_else(|| "x".to_owned(), |c| header[c].clone()),
+        v: v_col.map(|c| header[c].clone()),
+        u: u_col.map(|c| header[c].clone()),
+    };
+    Ok(SystemData {
+        recording: Recording {
+            path: PathBuf::from(path),
+            t,
+            x,
+            v,
+            u,
+            columns: names,
+        },
+        electrical,
+        x_from_v,
+    })
+}
+
+/// A velocity integrated (trapezoids) into a displacement, its drift removed (the
+/// least-squares line, then a centred moving average two hundred periods of v long (the period from v's zero crossings, at least 64
+/// samples)); returns x and the width. Non-finite values count as 0.
+pub fn integrate_velocity(t: &[f64], v: &[f64]) -> (Vec<f64>, usize) {
+    let n = v.len();
+    let clean: Vec<f64> = v
+        .iter()
+        .map(|x| if x.is_finite() { *x } else { 0.0 })
+        .collect();
+    let mean = clean.iter().sum::<f64>() / n.max(1) as f64;
+    let centred: Vec<f64> = clean.iter().map(|x| x - mean).collect();
+    let crossings = centred
+        .windows(2)
+        .filter(|w| (w[0] < 0.0) != (w[1] < 0.0))
+        .count()
+        .max(1);
+    let period = 2 * n / crossings;
+    let width = (200 * period).clamp(64, n.max(64)) | 1;
+    let mut x = vec![0.0; n];
+    for i in 1..n {
+        let dt = t[i] - t[i - 1];
+        let dt = if dt.is_finite() { dt } else { 0.0 };
+        x[i] = x[i - 1] + 0.5 * dt * (centred[i] + centred[i - 1]);
+    }
+    // The least-squares line first (a bias of v), then the slow wander.
+    let tm = t.iter().sum::<f64>() / n.max(1) as f64;
+    let xm = x.iter().sum::<f64>() / n.max(1) as f64;
+    let sxy: f64 = t.iter().zip(&x).map(|(a, b)| (a - tm) * (b - xm)).sum();
+    let sxx: f64 = t.iter().map(|a| (a - tm).powi(2)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let line: Vec<f64> = t
+        .iter()
+        .zip(&x)
+        .map(|(a, b)| b - xm - slope * (a - tm))
+        .collect();
+    (high_pass(&line, width), width)
+}
+
+/// `s` minus its centred moving average of `width` samples (shorter at the ends).
+fn high_pass(s: &[f64], width: usize) -> Vec<f64> {
+    let n = s.len();
+    let mut prefix = vec![0.0; n + 1];
+    for i in 0..n {
+        prefix[i + 1] = prefix[i] + s[i];
+    }
+    (0..n)
+        .map(|i| {
+            let a = i.saturating_sub(width / 2);
+            let b = (i + width / 2 + 1).min(n);
+            s[i] - (prefix[b] - prefix[a]) / (b - a) as f64
+        })
+        .collect()
+}
+
+/// The system's configuration: the single-equation one from the mechanical channels, with
+/// the electrical channels and the coupling order. Returns it and whether Ω was estimated.
+pub fn configure(
+    data: &SystemData,
+    options: &Options,
+    coupling_order: u8,
+) -> Result<(SystemConfig, bool), CliError> {
+    let file = data.recording.path.display();
+    if options.noise_correction {
+        return Err(CliError::Input(format!(
+            "{file}: --noise-correction is not available for a system of equations (a recording with an electrical channel)."
+        )));
+    }
+    let (base, estimated) =
+        identify::configure(&data.recording, options).map_err(|e| CliError::Identify(e.0))?;
+    let config = SystemConfig {
+        base,
+        electrical: data.kinds(),
+        coupling_order,
+    };
+    config
+        .validate::<WINDOW_CAPACITY, TERM_CAPACITY, EQUATIONS, RINGS>()
+        .map_err(|e| CliError::Input(format!("{file}: {e}.")))?;
+    Ok((config, estimated))
+}
+
+/// Runs the system identifier over the recording in precision `T`; the model at its end.
+pub fn run<T: Real>(
+    data: &SystemData,
+    config: SystemConfig,
+    omega_estimated: bool,
+) -> Result<SystemReport, CliError> {
+    let file = data.recording.path.display();
+    let mut id: Box<HostSystemIdentifier<T>> = Box::new(
+        SystemIdentifier::new(config).map_err(|e| CliError::Input(format!("{file}: {e}.")))?,
+    );
+    let r = &data.recording;
+    let mut rejections = Vec::new();
+    let mut e = Vec::with_capacity(data.electrical.len());
+    for i in 0..r.len() {
+        e.clear();
+        e.extend(data.electrical.iter().map(|c| T::from_f64(c.values[i])));
+        let sample = SystemSample {
+            t: r.t[i],
+            x: T::from_f64(r.x[i]),
+            v: r.v.as_ref().map(|v| T::from_f64(v[i])),
+            u: r.u.as_ref().map(|u| T::from_f64(u[i])),
+            electrical: &e,
+        };
+        if let Err(why) = id.push(&sample) {
+            rejections.push(format!(
+                "{file}: data row {} (t = {}): {why}; it was left out",
+                i + 1,
+                r.t[i]
+            ));
+        }
+    }
+    id.screen();
+    let counters = *id.counters();
+    let model = id.model().ok_or_else(|| {
+        CliError::Identify(format!(
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            counters.accepted,
+            counters.rejected(),
+            id.library().len()
+        ))
+    })?;
+    let mut report = report::SystemReport::of(
+        model,
+        &config,
+        omega_estimated,
+        counters.rejected(),
+        std::any::type_name::<T>(),
+        data,
+    );
+    report.rejections = rejections;
+    report::add_standard_errors(&mut report, data);
+    Ok(report)
+}
+
+/// Refuses the system's flags for a recording that is not a system (no electrical column):
+/// they would be ignored.
+pub fn refuse_stray_flags(file: &Path, args: &SystemArgs) -> Result<(), CliError> {
+    let stray = if args.load_ohms.is_some() {
+        Some("--load-ohms")
+    } else if args.coupling_order != 1 {
+        Some("--coupling-order")
+    } else {
+        None
+    };
+    match stray {
+        Some(flag) => Err(CliError::Input(format!(
+            "{}: {flag} applies to a recording with an electrical column (V or i, or one named by --V-col or --i-col), and this one has none.",
+            file.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// `lssi identify FILE` for a recording with an electrical channel: the system's model, as
+/// text or `--json`.
+pub fn identify_command(
+    data: &SystemData,
+    options: &Options,
+    args: &SystemArgs,
+    json: bool,
+) -> Result<(), CliError> {
+    if let Some(r) = args.load_ohms
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err(CliError::BadFlag {
+            flag: "--load-ohms",
+            value: r.to_string(),
+            requirement: "a positive resistance in ohms".into(),
+        });
+    }
+    let (config, estimated) = configure(data, options, args.coupling_order)?;
+    let mut report = if options.f32 {
+        run::<f32>(data, config, estimated)?
+    } else {
+        run::<f64>(data, config, estimated)?
+    };
+    const NAMED: usize = 5;
+    for warning in report.rejections.iter().take(NAMED) {
+        eprintln!("lssi: warning: {warning}.");
+    }
+    if report.rejections.len() > NAMED {
+        eprintln!(
+            "lssi: warning: {} more samples were left out ({} in all).",
+            report.rejections.len() - NAMED,
+            report.rejections.len()
+        );
+    }
+    if let Some(r) = args.load_ohms {
+        report.harvester = Some(power::harvester(&report, data, r));
+    }
+    if json {
+        crate::outln!("{}", report.json());
+    } else {
+        for w in &report.warnings {
+            eprintln!("lssi: warning: {w}.");
+        }
+        crate::out!("{}", report.render());
+    }
+    Ok(())
+}

@@ -1,0 +1,400 @@
+//! The harvester in physical terms, for the load R the voltage was recorded across
+//! (`lssi identify --load-ohms R`).
+//!
+//! With the piezoelectric form x'' = … + χ V and V' = −λ V − κ v (per unit mass in the
+//! mechanical equation; Erturk–Inman: m x'' + … − θ V = F, C_p V' + V/R + θ x' = 0):
+//!
+//! - C_p = 1 / (λ R), θ = κ C_p, m = θ / χ (F, C/m = N/V and kg when x is in metres and V
+//!   in volts);
+//! - the electrical time constant R C_p = 1/λ;
+//! - the coupling factor k² = θ² / (C_p k + θ²) = κ χ / (k/m + κ χ), with k/m the linear
+//!   stiffness per unit mass of the mechanical equation at its stable equilibrium nearest
+//!   the record's mean x (−∂x''/∂x there: ω² for a linear beam, the stiffness in a well
+//!   for a bistable one);
+//! - the mean power V²/R, measured and predicted (the identified system's free run from
+//!   the record's first state, driven by its u or harmonics), over the record's second half
+//!   (the free run's transient left out);
+//! - the predicted mean power against the load, λ(R′) = 1/(R′ C_p) and κ unchanged, and the
+//!   optimal load; and against the forcing frequency (the harmonics' Ω scaled, or u replaced
+//!   by a tone of u's RMS at that frequency).
+
+use serde::Serialize;
+
+use super::simulate::{SimTerm, SystemSim, first_state, rms};
+use super::{SystemData, SystemReport};
+use lssi_core::library::Electrical;
+
+/// One point of a sweep.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PowerPoint {
+    /// The load, ohms (load sweep) or the forcing frequency, rad/s (frequency sweep).
+    pub at: f64,
+    /// Predicted mean power, W (absent: the free run diverged).
+    pub power_w: Option<f64>,
+}
+
+/// The harvester in physical terms (see the module's documentation).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Harvester {
+    /// The load the voltage was recorded across, ohms.
+    pub load_ohms: f64,
+    /// −(the V term of V'), 1/s.
+    pub lambda: Option<f64>,
+    /// −(the v term of V'), V per unit of v.
+    pub kappa: Option<f64>,
+    /// The V term of x'' (per unit mass), units of x'' per volt.
+    pub chi: Option<f64>,
+    /// The linear stiffness per unit mass at the stable equilibrium, 1/s².
+    pub stiffness_per_mass: Option<f64>,
+    /// The stable equilibrium it is taken at, units of x.
+    pub equilibrium: Option<f64>,
+    /// Capacitance C_p = 1/(λ R), F.
+    pub capacitance_f: Option<f64>,
+    /// Coupling θ = κ C_p, C per unit of x.
+    pub theta: Option<f64>,
+    /// Mass m = θ/χ (kg when x is in metres).
+    pub mass: Option<f64>,
+    /// Electromechanical coupling factor k² = κχ / (k/m + κχ).
+    pub coupling_k2: Option<f64>,
+    /// Electrical time constant R C_p = 1/λ, s.
+    pub time_constant_s: Option<f64>,
+    /// Measured mean V²/R over the record's second half, W.
+    pub power_measured_w: f64,
+    /// Predicted mean V²/R (the free run) over the same span, W.
+    pub power_predicted_w: Option<f64>,
+    /// Predicted mean power against the load.
+    pub load_sweep: Vec<PowerPoint>,
+    /// The load of the most power (the sweep's best, refined between its neighbours), ohms.
+    pub optimal_load_ohms: Option<f64>,
+    /// The predicted mean power at the optimal load, W.
+    pub optimal_power_w: Option<f64>,
+    /// Predicted mean power against the forcing frequency (rad/s).
+    pub frequency_sweep: Vec<PowerPoint>,
+    /// What could not be computed and why.
+    pub notes: Vec<String>,
+}
+
+/// The coefficient of `term` in equation `k` (0 when absent).
+fn coefficient(sim: &SystemSim, k: usize, term: SimTerm) -> f64 {
+    sim.equations
+        .get(k)
+        .and_then(|e| e.iter().find(|(t, _)| *t == term))
+        .map_or(0.0, |(_, c)| *c)
+}
+
+/// The mechanical equation's x-only part f(x) and its stable equilibrium nearest `mean`
+/// within ±`span` of it: (x_eq, −f'(x_eq)).
+fn stable_equilibrium(sim: &SystemSim, mean: f64, span: f64) -> Option<(f64, f64)> {
+    let f = |x: f64| -> f64 {
+        sim.equations[0]
+            .iter()
+            .filter_map(|(t, c)| match t {
+                SimTerm::Constant => Some(*c),
+                SimTerm::Monomial([p, 0, 0, 0]) => Some(c * x.powi(i32::from(*p))),
+                _ => None,
+            })
+            .sum()
+    };
+    let n = 4000;
+    let (lo, hi) = (mean - span, mean + span);
+    let step = (hi - lo) / f64::from(n);
+    let mut best: Option<(f64, f64)> = None;
+    for i in 0..n {
+        let (a, b) = (lo + step * f64::from(i), lo + step * f64::from(i + 1));
+        let (fa, fb) = (f(a), f(b));
+        // Stable: f goes from + to − (a restoring force).
+        if fa > 0.0 && fb <= 0.0 {
+            let mut x = a + (b - a) * fa / (fa - fb);
+            for _ in 0..30 {
+                let h = 1e-6 * span.max(1e-300);
+                let d = (f(x + h) - f(x - h)) / (2.0 * h);
+                if d == 0.0 {
+                    break;
+                }
+                x -= f(x) / d;
+            }
+            let h = 1e-5 * span.max(1e-300);
+            let k = -(f(x + h) - f(x - h)) / (2.0 * h);
+            if best.is_none_or(|(b, _)| (x - mean).abs() < (b - mean).abs()) {
+                best = Some((x, k));
+            }
+        }
+    }
+    best
+}
+
+/// The mean of V²/R over the second half of `v`; `None` when it holds non-finite values.
+fn mean_power(v: &[f64], ohms: f64) -> Option<f64> {
+    let half = &v[v.len() / 2..];
+    half.iter()
+        .all(|q| q.is_finite())
+        .then(|| half.iter().map(|q| q * q).sum::<f64>() / half.len().max(1) as f64 / ohms)
+}
+
+/// The harvester in physical terms for load `ohms` (see the module's documentation).
+pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvester {
+    let mut h = Harvester {
+        load_ohms: ohms,
+        lambda: None,
+        kappa: None,
+        chi: None,
+        stiffness_per_mass: None,
+        equilibrium: None,
+        capacitance_f: None,
+        theta: None,
+        mass: None,
+        coupling_k2: None,
+        time_constant_s: None,
+        power_measured_w: f64::NAN,
+        power_predicted_w: None,
+        load_sweep: Vec::new(),
+        optimal_load_ohms: None,
+        optimal_power_w: None,
+        frequency_sweep: Vec::new(),
+        notes: Vec::new(),
+    };
+    let Some(sim) = SystemSim::of_report(report) else {
+        h.notes
+            .push("the model has a term the simulator does not know".into());
+        return h;
+    };
+    let Some(kv) = sim
+        .electrical
+        .iter()
+        .position(|e| *e == Electrical::Voltage)
+    else {
+        h.notes.push(
+            "the load analysis needs a voltage channel V (the recording has a current)".into(),
+        );
+        return h;
+    };
+    let measured = &data.electrical[kv].values;
+    h.power_measured_w = mean_power(measured, ohms).unwrap_or(f64::NAN);
+    let mut powers = [0u8; 4];
+    powers[2 + kv] = 1;
+    let v_term = SimTerm::Monomial(powers);
+    let lambda = -coefficient(&sim, 1 + kv, v_term);
+    let kappa = -coefficient(&sim, 1 + kv, SimTerm::Monomial([0, 1, 0, 0]));
+    let chi = coefficient(&sim, 0, v_term);
+    let r = &data.recording;
+    let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;
+    let span = 4.0 * rms(&r.x.iter().map(|q| q - mean_x).collect::<Vec<_>>());
+    if let Some((x_eq, k)) = stable_equilibrium(&sim, mean_x, span) {
+        h.equilibrium = Some(x_eq);
+        h.stiffness_per_mass = Some(k);
+    } else {
+        h.notes.push(
+            "the mechanical equation has no stable equilibrium within 4 RMS of the mean x, so no stiffness and no k²".into(),
+        );
+    }
+    if lambda > 0.0 {
+        let cp = 1.0 / (lambda * ohms);
+        h.lambda = Some(lambda);
+        h.capacitance_f = Some(cp);
+        h.time_constant_s = Some(1.0 / lambda);
+        if kappa != 0.0 {
+            h.kappa = Some(kappa);
+            h.theta = Some(kappa * cp);
+        } else {
+            h.notes
+                .push("V' has no v term (κ = 0), so no θ and no k²".into());
+        }
+        if chi != 0.0 {
+            h.chi = Some(chi);
+            if kappa != 0.0 {
+                h.mass = Some(kappa * cp / chi);
+            }
+        } else {
+            h.notes
+                .push("x'' has no V term (χ = 0), so no mass and no k²".into());
+        }
+        if let (Some(k), true) = (h.stiffness_per_mass, kappa * chi != 0.0) {
+            h.coupling_k2 = Some(kappa * chi / (k + kappa * chi));
+        }
+    } else {
+        h.notes.push(format!(
+            "V' has no decay term −λ V with λ > 0 (λ = {lambda}), so no C_p, no time constant and no load sweep"
+        ));
+    }
+    let u: Vec<f64> = r.u.clone().unwrap_or_default();
+    let start = first_state(data);
+    let bound = rms(&r.x) + rms(measured) + 1.0;
+    let power_of = |model: &SystemSim, u: &[f64]| -> Option<f64> {
+        let states = model.run(&r.t, u, start, bound);
+        let v: Vec<f64> = states.iter().map(|s| s[2 + kv]).collect();
+        mean_power(&v, ohms)
+    };
+    h.power_predicted_w = power_of(&sim, &u);
+    if h.power_predicted_w.is_none() {
+        h.notes
+            .push("the free run at the recorded load diverged".into());
+    }
+    // The load sweep: λ(R') = λ R / R'.
+    if lambda > 0.0 {
+        let cp = 1.0 / (lambda * ohms);
+        let centre = if report.omega > 0.0 {
+            1.0 / (report.omega * cp)
+        } else {
+            ohms
+        };
+        let mut loads: Vec<f64> = (-8..=8)
+            .map(|k| centre * 10f64.powf(f64::from(k) / 4.0))
+            .collect();
+        loads.push(ohms);
+        loads.sort_by(f64::total_cmp);
+        for &load in &loads {
+            let mut model = sim.clone();
+            let lam = 1.0 / (load * cp);
+            for (t, c) in model.equations[1 + kv].iter_mut() {
+                if *t == v_term {
+                    *c = -lam;
+                }
+            }
+            // The power at R' is V²/R'.
+            let p = power_of(&model, &u).map(|p| p * ohms / load);
+            h.load_sweep.push(PowerPoint {
+                at: load,
+                power_w: p,
+            });
+        }
+        let power_at = |load: f64| -> Option<f64> {
+            let mut model = sim.clone();
+            for (t, c) in model.equations[1 + kv].iter_mut() {
+                if *t == v_term {
+                    *c = -1.0 / (load * cp);
+                }
+            }
+            power_of(&model, &u).map(|p| p * ohms / load)
+        };
+        let best = h
+            .load_sweep
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| Some((i, p.power_w?)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|p| p.0);
+        // Refined between the grid's neighbours of the best load (golden section on ln R).
+        if let Some(i) = best {
+            let lo = h.load_sweep[i.saturating_sub(1)].at.ln();
+            let hi = h.load_sweep[(i + 1).min(h.load_sweep.len() - 1)].at.ln();
+            let at = crate::identify::golden(
+                |r| power_at(r.exp()).map_or(f64::INFINITY, |p| -p),
+                lo,
+                hi,
+                12,
+            )
+            .exp();
+            let refined = power_at(at);
+            let grid = h.load_sweep[i].power_w;
+            if refined.zip(grid).is_some_and(|(r, g)| r >= g) {
+                h.optimal_load_ohms = Some(at);
+                h.optimal_power_w = refined;
+            } else {
+                h.optimal_load_ohms = Some(h.load_sweep[i].at);
+                h.optimal_power_w = grid;
+            }
+        }
+    }
+    // The frequency sweep.
+    let has_harmonics = sim
+        .equations
+        .iter()
+        .flatten()
+        .any(|(t, _)| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_)));
+    if report.omega > 0.0 && (has_harmonics || sim.uses_input()) {
+        let amplitude = std::f64::consts::SQRT_2 * rms(&u);
+        for k in 0..=20 {
+            let scale = 0.5 + 0.05 * f64::from(k);
+            let w = report.omega * scale;
+            let mut model = sim.clone();
+            for (t, _) in model.equations.iter_mut().flatten() {
+                match t {
+                    SimTerm::Sin(f) | SimTerm::Cos(f) => *f *= scale,
+                    _ => {}
+                }
+            }
+            let tone: Vec<f64> = if sim.uses_input() {
+                r.t.iter().map(|t| amplitude * (w * t).cos()).collect()
+            } else {
+                Vec::new()
+            };
+            h.frequency_sweep.push(PowerPoint {
+                at: w,
+                power_w: power_of(&model, &tone),
+            });
+        }
+    } else {
+        h.notes
+            .push("the model has no forcing term (harmonic or u), so no frequency sweep".into());
+    }
+    h
+}
+
+impl Harvester {
+    /// The text table.
+    pub fn render(&self) -> String {
+        let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
+        let mut out = format!(
+            "harvester at the recorded load R = {} Ω (per-unit-mass forms: x'' ∋ χ V, V' = −λ V − κ v; SI units when x is in m and V in V)\n",
+            super::report::number(self.load_ohms)
+        );
+        out.push_str(&format!(
+            "  λ = {} 1/s   κ = {}   χ = {}   stiffness per mass k/m = {} 1/s² (at x = {})\n",
+            n(self.lambda),
+            n(self.kappa),
+            n(self.chi),
+            n(self.stiffness_per_mass),
+            n(self.equilibrium)
+        ));
+        out.push_str(&format!(
+            "  C_p = 1/(λR) = {} F   θ = κ C_p = {} N/V   m = θ/χ = {} kg   time constant R C_p = {} s\n",
+            n(self.capacitance_f),
+            n(self.theta),
+            n(self.mass),
+            n(self.time_constant_s)
+        ));
+        out.push_str(&format!(
+            "  coupling factor k² = θ²/(C_p k + θ²) = κχ/(k/m + κχ) = {}\n",
+            n(self.coupling_k2)
+        ));
+        out.push_str(&format!(
+            "  mean power V²/R over the second half: measured {} W, predicted {} W (free run from the first row)\n",
+            super::report::number(self.power_measured_w),
+            n(self.power_predicted_w)
+        ));
+        if !self.load_sweep.is_empty() {
+            out.push_str("\n  load R (Ω)    predicted mean power (W)\n");
+            for p in &self.load_sweep {
+                let mark = if p.at == self.load_ohms {
+                    "  <- recorded"
+                } else {
+                    ""
+                };
+                out.push_str(&format!(
+                    "  {:<12.4e}  {}{mark}\n",
+                    p.at,
+                    p.power_w
+                        .map_or("diverged".to_owned(), |w| format!("{w:.4e}"))
+                ));
+            }
+        }
+        if !self.frequency_sweep.is_empty() {
+            out.push_str(
+                "\n  Ω (rad/s)     f (Hz)      predicted mean power (W) at the recorded load\n",
+            );
+            for p in &self.frequency_sweep {
+                out.push_str(&format!(
+                    "  {:<12.5}  {:<10.4}  {}\n",
+                    p.at,
+                    p.at / std::f64::consts::TAU,
+                    p.power_w
+                        .map_or("diverged".to_owned(), |w| format!("{w:.4e}"))
+                ));
+            }
+        }
+        for note in &self.notes {
+            out.push_str(&format!("  note: {note}\n"));
+        }
+        out
+    }
+}

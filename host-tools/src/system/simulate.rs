@@ -1,0 +1,496 @@
+//! A system model's free run: `lssi simulate MODEL.json FILE.csv` when MODEL.json holds
+//! `"equations"` (what `lssi identify --json` prints for a recording with an electrical
+//! channel).
+//!
+//! The state is (x, v, e₁[, e₂]) with x' = v, v' = the x'' equation, eₖ' = its equation;
+//! classical RK4 on the recording's time grid, u interpolated linearly between samples (its
+//! midpoint at half steps). The initial state is the file's first row: x (or x integrated
+//! from v, as `identify` does), v (measured, or x's first-derivative estimate over the
+//! first samples) and the electrical channels. Only u comes from the file afterwards: the
+//! prediction from the excitation alone.
+
+use std::fmt::Write as _;
+
+use lssi_core::library::Electrical;
+
+use super::{SimulateSystemArgs, SystemData, SystemReport};
+use crate::error::CliError;
+use crate::identify::terms::frequency_text;
+use crate::recording::ColumnNames;
+
+/// A term of a system's library, ready to evaluate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SimTerm {
+    /// 1.
+    Constant,
+    /// x^p₀ v^p₁ e₁^p₂ e₂^p₃.
+    Monomial([u8; 4]),
+    /// sin(W t), W in rad/s.
+    Sin(f64),
+    /// cos(W t).
+    Cos(f64),
+    /// The measured excitation u.
+    Input,
+}
+
+impl SimTerm {
+    /// The term a name stands for (`1`, `u`, `x^3`, `x*V`, `cos(6.28319t)`), with
+    /// `electrical` the system's electrical states in order; `None` for a name it is not.
+    pub fn parse(name: &str, electrical: &[Electrical]) -> Option<Self> {
+        match name {
+            "1" => return Some(SimTerm::Constant),
+            "u" => return Some(SimTerm::Input),
+            _ => {}
+        }
+        for (prefix, sin) in [("sin(", true), ("cos(", false)] {
+            if let Some(rest) = name.strip_prefix(prefix) {
+                let inner = rest.strip_suffix("t)")?;
+                let w = if inner.is_empty() {
+                    1.0
+                } else {
+                    inner.parse().ok()?
+                };
+                return Some(if sin {
+                    SimTerm::Sin(w)
+                } else {
+                    SimTerm::Cos(w)
+                });
+            }
+        }
+        let mut powers = [0u8; 4];
+        for factor in name.split('*') {
+            let (symbol, power) = match factor.split_once('^') {
+                Some((s, p)) => (s, p.parse::<u8>().ok()?),
+                None => (factor, 1),
+            };
+            let state = match symbol {
+                "x" => 0,
+                "v" => 1,
+                s => 2 + electrical.iter().position(|e| e.symbol() == s)?,
+            };
+            powers[state] = powers[state].checked_add(power)?;
+        }
+        (powers.iter().any(|&p| p > 0)).then_some(SimTerm::Monomial(powers))
+    }
+
+    /// Its value at state `s`, time `t`, input `u`.
+    pub fn eval(&self, s: &[f64; 4], t: f64, u: f64) -> f64 {
+        match *self {
+            SimTerm::Constant => 1.0,
+            SimTerm::Monomial(p) => s
+                .iter()
+                .zip(p)
+                .filter(|(_, p)| *p > 0)
+                .map(|(q, p)| q.powi(i32::from(p)))
+                .product(),
+            SimTerm::Sin(w) => (w * t).sin(),
+            SimTerm::Cos(w) => (w * t).cos(),
+            SimTerm::Input => u,
+        }
+    }
+
+    /// Its name, as the reports spell it.
+    pub fn name(&self, electrical: &[Electrical]) -> String {
+        match *self {
+            SimTerm::Constant => "1".into(),
+            SimTerm::Input => "u".into(),
+            SimTerm::Sin(w) | SimTerm::Cos(w) => {
+                let f = if matches!(self, SimTerm::Sin(_)) {
+                    "sin"
+                } else {
+                    "cos"
+                };
+                let w = frequency_text(w);
+                if w == "1" {
+                    format!("{f}(t)")
+                } else {
+                    format!("{f}({w}t)")
+                }
+            }
+            SimTerm::Monomial(p) => {
+                let mut out = String::new();
+                for (k, &q) in p.iter().enumerate() {
+                    if q == 0 {
+                        continue;
+                    }
+                    let symbol = match k {
+                        0 => "x",
+                        1 => "v",
+                        k => electrical.get(k - 2).map_or("e", |e| e.symbol()),
+                    };
+                    if !out.is_empty() {
+                        out.push('*');
+                    }
+                    out.push_str(symbol);
+                    if q > 1 {
+                        let _ = write!(out, "^{q}");
+                    }
+                }
+                out
+            }
+        }
+    }
+}
+
+/// A system model to simulate: x'' first, then each electrical channel's equation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SystemSim {
+    /// The electrical states, in order.
+    pub electrical: Vec<Electrical>,
+    /// Each equation's terms and coefficients.
+    pub equations: Vec<Vec<(SimTerm, f64)>>,
+}
+
+impl SystemSim {
+    /// The model of a report.
+    pub fn of_report(report: &SystemReport) -> Option<Self> {
+        let electrical: Vec<Electrical> = report.states[2..]
+            .iter()
+            .map(|s| match s.as_str() {
+                "V" => Some(Electrical::Voltage),
+                "i" => Some(Electrical::Current),
+                _ => None,
+            })
+            .collect::<Option<_>>()?;
+        let equations = report
+            .equations
+            .iter()
+            .map(|e| {
+                e.terms
+                    .iter()
+                    .map(|t| Some((SimTerm::parse(&t.term, &electrical)?, t.coef)))
+                    .collect::<Option<Vec<_>>>()
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(Self {
+            electrical,
+            equations,
+        })
+    }
+
+    /// The model of an `lssi identify --json` object with `"equations"`.
+    pub fn from_json(value: &serde_json::Value, path: &str) -> Result<Self, CliError> {
+        let bad = |why: String| CliError::Input(format!("{path}: {why}."));
+        let equations = value
+            .get("equations")
+            .and_then(|e| e.as_array())
+            .ok_or_else(|| bad("it has no \"equations\" list".into()))?;
+        let mut electrical = Vec::new();
+        for e in equations.iter().skip(1) {
+            match e.get("target").and_then(|t| t.as_str()) {
+                Some("V'") => electrical.push(Electrical::Voltage),
+                Some("i'") => electrical.push(Electrical::Current),
+                other => {
+                    return Err(bad(format!(
+                        "an equation's target is {other:?}, but after x'' a system's are \"V'\" or \"i'\""
+                    )));
+                }
+            }
+        }
+        if equations.first().and_then(|e| e.get("target")?.as_str()) != Some("x''") {
+            return Err(bad("its first equation is not x''".into()));
+        }
+        let mut out = Vec::new();
+        for e in equations {
+            let terms = e
+                .get("terms")
+                .and_then(|t| t.as_array())
+                .ok_or_else(|| bad("an equation has no \"terms\" list".into()))?;
+            let mut eq = Vec::new();
+            for t in terms {
+                let name = t
+                    .get("term")
+                    .and_then(|n| n.as_str())
+                    .ok_or_else(|| bad("a term has no \"term\" name".into()))?;
+                let coef = t
+                    .get("coef")
+                    .and_then(|c| c.as_f64())
+                    .ok_or_else(|| bad(format!("the term {name} has no numeric \"coef\"")))?;
+                let term = SimTerm::parse(name, &electrical)
+                    .ok_or_else(|| bad(format!("the term {name:?} is not one lssi knows")))?;
+                eq.push((term, coef));
+            }
+            out.push(eq);
+        }
+        Ok(Self {
+            electrical,
+            equations: out,
+        })
+    }
+
+    /// Whether a term of the model reads u.
+    pub fn uses_input(&self) -> bool {
+        self.equations
+            .iter()
+            .flatten()
+            .any(|(t, _)| *t == SimTerm::Input)
+    }
+
+    /// The state's derivative.
+    fn rate(&self, s: &[f64; 4], t: f64, u: f64) -> [f64; 4] {
+        let f = |k: usize| -> f64 {
+            self.equations.get(k).map_or(0.0, |eq| {
+                eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
+            })
+        };
+        [s[1], f(0), f(1), f(2)]
+    }
+
+    /// The free run over the grid `t` from `start`, driven by `u` (one value per time;
+    /// empty: 0). States after a divergence (non-finite, or beyond 1e6 times the largest
+    /// initial magnitude plus `bound`) are NaN. Returns one state per time.
+    pub fn run(&self, t: &[f64], u: &[f64], start: [f64; 4], bound: f64) -> Vec<[f64; 4]> {
+        let mut out = Vec::with_capacity(t.len());
+        let mut s = start;
+        let limit = 1e6 * (start.iter().fold(0.0f64, |m, q| m.max(q.abs())) + bound);
+        let at = |i: usize| u.get(i).copied().unwrap_or(0.0);
+        let mut dead = false;
+        for i in 0..t.len() {
+            out.push(if dead { [f64::NAN; 4] } else { s });
+            if i + 1 == t.len() || dead {
+                continue;
+            }
+            let (t0, h) = (t[i], t[i + 1] - t[i]);
+            let (u0, u1) = (at(i), at(i + 1));
+            let um = 0.5 * (u0 + u1);
+            let add = |a: &[f64; 4], k: &[f64; 4], c: f64| -> [f64; 4] {
+                [
+                    a[0] + c * k[0],
+                    a[1] + c * k[1],
+                    a[2] + c * k[2],
+                    a[3] + c * k[3],
+                ]
+            };
+            let k1 = self.rate(&s, t0, u0);
+            let k2 = self.rate(&add(&s, &k1, 0.5 * h), t0 + 0.5 * h, um);
+            let k3 = self.rate(&add(&s, &k2, 0.5 * h), t0 + 0.5 * h, um);
+            let k4 = self.rate(&add(&s, &k3, h), t0 + h, u1);
+            for j in 0..4 {
+                s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
+            if s.iter().any(|q| !q.is_finite() || q.abs() > limit) {
+                dead = true;
+            }
+        }
+        out
+    }
+}
+
+/// The recording's first state (x, v, e₁, e₂): v measured, or x's slope over its first
+/// samples (a line through the first five).
+pub fn first_state(data: &SystemData) -> [f64; 4] {
+    let r = &data.recording;
+    let v0 = match &r.v {
+        Some(v) => v[0],
+        None => {
+            let n = r.len().min(5);
+            let (t, x) = (&r.t[..n], &r.x[..n]);
+            let tm = t.iter().sum::<f64>() / n as f64;
+            let xm = x.iter().sum::<f64>() / n as f64;
+            let sxy: f64 = t.iter().zip(x).map(|(a, b)| (a - tm) * (b - xm)).sum();
+            let sxx: f64 = t.iter().map(|a| (a - tm).powi(2)).sum();
+            if sxx > 0.0 { sxy / sxx } else { 0.0 }
+        }
+    };
+    let mut s = [r.x[0], v0, 0.0, 0.0];
+    for (k, e) in data.electrical.iter().enumerate().take(2) {
+        s[2 + k] = e.values[0];
+    }
+    s
+}
+
+/// The RMS of the finite values of `s`.
+pub fn rms(s: &[f64]) -> f64 {
+    let f: Vec<f64> = s.iter().copied().filter(|q| q.is_finite()).collect();
+    (f.iter().map(|q| q * q).sum::<f64>() / f.len().max(1) as f64).sqrt()
+}
+
+/// NRMSE of `sim` against `rec`: RMS of the difference over the RMS of `rec` about its
+/// mean; NaN when the simulation diverged.
+pub fn nrmse(sim: &[f64], rec: &[f64]) -> f64 {
+    let n = rec.len().min(sim.len());
+    let mean = rec[..n].iter().sum::<f64>() / n.max(1) as f64;
+    let mut e = 0.0;
+    let mut d = 0.0;
+    for i in 0..n {
+        e += (sim[i] - rec[i]).powi(2);
+        d += (rec[i] - mean).powi(2);
+    }
+    (e / d.max(f64::MIN_POSITIVE)).sqrt()
+}
+
+/// `lssi simulate MODEL.json FILE.csv` for a system: prints each state's NRMSE against the
+/// recording (and the mean power with `--load-ohms`); `out` gets t and every simulated
+/// state (CSV).
+pub fn simulate_command(
+    value: &serde_json::Value,
+    model_path: &str,
+    file: &std::path::Path,
+    columns: &ColumnNames,
+    args: &SimulateSystemArgs,
+    out: Option<&std::path::Path>,
+) -> Result<(), CliError> {
+    let sim = SystemSim::from_json(value, model_path)?;
+    let data = super::read_if_system(file, columns, &args.columns)?.ok_or_else(|| {
+        CliError::Input(format!(
+            "{}: the model is a system with {}, but the file has no such column (name it with --V-col or --i-col).",
+            file.display(),
+            sim.electrical
+                .iter()
+                .map(|e| format!("'{}'", e.symbol()))
+                .collect::<Vec<_>>()
+                .join(" and ")
+        ))
+    })?;
+    let kinds: Vec<Electrical> = data.electrical.iter().map(|e| e.kind).collect();
+    if kinds != sim.electrical {
+        return Err(CliError::Input(format!(
+            "{}: the model's electrical states are {:?}, but the file's are {:?}.",
+            file.display(),
+            sim.electrical
+                .iter()
+                .map(|e| e.symbol())
+                .collect::<Vec<_>>(),
+            kinds.iter().map(|e| e.symbol()).collect::<Vec<_>>()
+        )));
+    }
+    let r = &data.recording;
+    let u = match (&r.u, sim.uses_input()) {
+        (Some(u), _) => u.clone(),
+        (None, false) => Vec::new(),
+        (None, true) => {
+            return Err(CliError::Input(format!(
+                "{}: the model has a u term, but the file has no 'u' column (name it with --u-col).",
+                file.display()
+            )));
+        }
+    };
+    if let Some(r) = args.load_ohms
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err(CliError::BadFlag {
+            flag: "--load-ohms",
+            value: r.to_string(),
+            requirement: "a positive resistance in ohms".into(),
+        });
+    }
+    let start = first_state(&data);
+    let states = sim.run(&r.t, &u, start, rms(&r.x) + 1.0);
+    let column = |k: usize| -> Vec<f64> { states.iter().map(|s| s[k]).collect() };
+    let names: Vec<String> = ["x".to_owned(), "v".to_owned()]
+        .into_iter()
+        .chain(sim.electrical.iter().map(|e| e.symbol().to_owned()))
+        .collect();
+    let diverged = states.iter().position(|s| !s[0].is_finite());
+    let mut text = format!(
+        "{}: simulated from the first row (x {}, v {}{}) over {} samples, driven by {}\n",
+        file.display(),
+        start[0],
+        start[1],
+        sim.electrical
+            .iter()
+            .enumerate()
+            .map(|(k, e)| format!(", {} {}", e.symbol(), start[2 + k]))
+            .collect::<String>(),
+        r.len(),
+        if sim.uses_input() {
+            "the file's u"
+        } else {
+            "the model's harmonics"
+        }
+    );
+    if let Some(i) = diverged {
+        text.push_str(&format!(
+            "  the free run diverged at t = {} s; the states after it are not numbers\n",
+            r.t[i]
+        ));
+    }
+    text.push_str("  state  NRMSE      RMS simulated  RMS recorded\n");
+    let recorded: Vec<Option<&Vec<f64>>> = [Some(&r.x), r.v.as_ref()]
+        .into_iter()
+        .chain(data.electrical.iter().map(|e| Some(&e.values)))
+        .collect();
+    for (k, name) in names.iter().enumerate() {
+        let sim_k = column(k);
+        match recorded[k] {
+            Some(rec) => text.push_str(&format!(
+                "  {name:<5}  {:<9.4}  {:<13.4e}  {:.4e}\n",
+                nrmse(&sim_k, rec),
+                rms(&sim_k),
+                rms(rec)
+            )),
+            None => text.push_str(&format!(
+                "  {name:<5}  -          {:<13.4e}  (not recorded)\n",
+                rms(&sim_k)
+            )),
+        }
+    }
+    if let Some(ohms) = args.load_ohms
+        && let Some(k) = sim
+            .electrical
+            .iter()
+            .position(|e| *e == Electrical::Voltage)
+    {
+        let sim_v = column(2 + k);
+        let p_sim = rms(&sim_v).powi(2) / ohms;
+        let p_rec = rms(&data.electrical[k].values).powi(2) / ohms;
+        text.push_str(&format!(
+            "  mean power V²/R at {ohms} Ω: simulated {p_sim:.4e} W, recorded {p_rec:.4e} W ({:+.1} %)\n",
+            100.0 * (p_sim / p_rec - 1.0)
+        ));
+    }
+    crate::out!("{text}");
+    if let Some(path) = out {
+        let mut csv = format!("t,{}\n", names.join(","));
+        for (i, s) in states.iter().enumerate() {
+            let _ = write!(csv, "{}", r.t[i]);
+            for q in &s[..names.len()] {
+                let _ = write!(csv, ",{q}");
+            }
+            csv.push('\n');
+        }
+        std::fs::write(path, csv).map_err(|source| CliError::Write {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        let e = [Electrical::Voltage];
+        for name in [
+            "1",
+            "u",
+            "x",
+            "v^3",
+            "x*V",
+            "x^2*v",
+            "V",
+            "cos(6.28319t)",
+            "sin(t)",
+        ] {
+            let t = SimTerm::parse(name, &e).unwrap();
+            assert_eq!(t.name(&e), name);
+        }
+        assert_eq!(SimTerm::parse("i", &e), None);
+        assert_eq!(SimTerm::parse("cos(2", &e), None);
+    }
+
+    #[test]
+    fn a_linear_decay_follows_its_exponential() {
+        // V' = -2 V from V = 1: exp(-2t).
+        let sim = SystemSim {
+            electrical: vec![Electrical::Voltage],
+            equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0]), -2.0)]],
+        };
+        let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
+        let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0], 1.0);
+        assert!((s[100][2] - (-2.0f64).exp()).abs() < 1e-8);
+    }
+}
