@@ -20,12 +20,15 @@ pub fn flush() {
     }
 }
 
-/// Says that the output could not be written, and exits with code 1.
+/// Says that the output could not be written, and exits with code 1; a closed pipe ends
+/// quietly with code 0.
 pub fn fail(error: &io::Error) -> ! {
-    // A closed pipe (`lssi … | head`) is the reader's choice: no message then.
-    if error.kind() != io::ErrorKind::BrokenPipe {
-        let _ = writeln!(io::stderr(), "lssi: cannot write the output: {error}.");
+    // A closed pipe (`lssi … | head`) is the reader's choice: no message, and success, as
+    // `set -o pipefail` scripts expect of a command whose reader has all it wanted.
+    if error.kind() == io::ErrorKind::BrokenPipe {
+        std::process::exit(0)
     }
+    let _ = writeln!(io::stderr(), "lssi: cannot write the output: {error}.");
     std::process::exit(1)
 }
 

@@ -65,6 +65,16 @@ impl Kind {
             Kind::Spike => "isolated spikes",
         }
     }
+
+    /// What one of it is, in a few words.
+    pub fn noun_one(self) -> &'static str {
+        match self {
+            Kind::NonFinite => "NaN or infinite value",
+            Kind::Gap => "time gap",
+            Kind::Early => "sample less than half a period after the previous one",
+            Kind::Spike => "isolated spike",
+        }
+    }
 }
 
 /// One blemish.
@@ -415,7 +425,11 @@ impl Scan {
                 Some(format!(
                     "{} {} ({})",
                     rows.len(),
-                    k.noun(),
+                    if rows.len() == 1 {
+                        k.noun_one()
+                    } else {
+                        k.noun()
+                    },
                     where_text(&rows)
                 ))
             })

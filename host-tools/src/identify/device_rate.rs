@@ -96,6 +96,23 @@ pub fn sentence(rate: &DeviceRate, sample_period: f64) -> String {
     s
 }
 
+/// Samples a period of the fastest line under which the identifier's accuracy is not held
+/// (docs/figures.md, "Low sample rates": from 30 samples a forcing period the eveh harvester
+/// keeps every term; at 24 a monostable one loses its damping and cubic).
+pub const FEWEST_SAMPLES_PER_PERIOD: f64 = 28.0;
+
+/// A warning for a recording sampled too coarsely for its model's fastest line, or `None`.
+pub fn coarse_warning(report: &super::Report) -> Option<String> {
+    let rate = report.device_rate()?;
+    let per_period = 1.0 / (report.sample_period * rate.line_hz);
+    (per_period.is_finite() && per_period < FEWEST_SAMPLES_PER_PERIOD).then(|| {
+        format!(
+            "this recording has {per_period:.1} samples a period of {} ({:.4} Hz); the identifier holds its accuracy from about 30 (docs/figures.md, low sample rates): a damping or cubic term may be off or missing, sample at {} Hz or faster",
+            rate.line, rate.line_hz, rate.hz
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -64,6 +64,7 @@ pub fn warnings(report: &Report) -> Vec<String> {
             report.rejections.len()
         ));
     }
+    out.extend(crate::identify::device_rate::coarse_warning(report));
     out
 }
 

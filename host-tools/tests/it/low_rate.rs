@@ -89,3 +89,40 @@ fn damping_kept_and_nothing_spurious_at_a_field_devices_rate() {
         }
     }
 }
+
+/// Under about 30 samples a period of the model's fastest line, `lssi identify` says so in a
+/// warning naming the line and the rate to sample at; at 45 it says nothing of the kind.
+#[test]
+fn a_recording_sampled_too_coarsely_is_told_so() {
+    let dir = tempfile::tempdir().unwrap();
+    for (per_period, warned) in [(24.0, true), (45.0, false)] {
+        let csv = dir.path().join(format!("p{per_period}.csv"));
+        let rate = format!("{:.1}", per_period * OMEGA / (2.0 * std::f64::consts::PI));
+        let out = Command::new(LSSI)
+            .args(["gen", "eveh", "--wells", "monostable", "--rate", &rate])
+            .args(["--delta", "0.005", "--seed", "74"])
+            .arg(&csv)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+        let out = Command::new(LSSI)
+            .arg("identify")
+            .arg(&csv)
+            .args(["--family", "odd", "--json"])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        if !out.status.success() {
+            // Withheld (exit 3) is also an answer that does not mislead.
+            assert_eq!(out.status.code(), Some(3), "{per_period}: {out:?}");
+            continue;
+        }
+        let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let warnings = json["warnings"].to_string();
+        assert_eq!(
+            warnings.contains("samples a period of"),
+            warned,
+            "{per_period}: {warnings}"
+        );
+    }
+}
