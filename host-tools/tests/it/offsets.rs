@@ -95,11 +95,14 @@ fn close(
     }
 }
 
+/// gen's flags, a name, the offsets (× amplitude) and the ADC resolutions (bits).
+type Case<'a> = (&'a [&'a str], &'a str, &'a [f64], &'a [u32]);
+
 #[test]
 fn offsets_up_to_ten_thousand_amplitudes_and_adc_counts_give_the_mean_removed_model() {
     let dir = tempfile::tempdir().unwrap();
     // Each case with its offsets (× amplitude) and ADC resolutions (bits).
-    let cases: [(&[&str], &str, &[f64], &[u32]); 3] = [
+    let cases: [Case; 3] = [
         (
             &["--wells", "monostable", "--seed", "31"],
             "monostable",
