@@ -33,7 +33,18 @@ enum Command {
     /// Listen to a standalone device (a serial port, or the firmware under QEMU sampling a
     /// recording): live model and health, telemetry log, JSON lines.
     Monitor(monitor::MonitorArgs),
-    /// Draw a recording and its identified model (PNG and SVG).
+    /// Draw recordings and their identified models (PNG and SVG).
+    ///
+    /// Each recording named (a folder: its *.csv files) is identified as `lssi identify`
+    /// does it and its figures are written to --out as <stem>-<figure>.png and .svg. A model
+    /// the quality gate withholds (`lssi identify` exits 3) is not drawn at all: no figure of
+    /// that recording is written, and the reason is printed. A recording that fails does not
+    /// stop the others; the exit code is 2 if one could not be used, else 3 if a model was
+    /// withheld, else 1 if a figure could not be written.
+    #[command(mut_arg("more", |a| a.help(
+        "More recordings (or folders, each meaning its *.csv files), plotted one after the \
+         other; one that fails is named on stderr and the others are still plotted"
+    )))]
     Plot(plot::PlotArgs),
     /// Simulate a model from `lssi identify --json` over a recording's time grid and input.
     Simulate(simulate::SimulateArgs),

@@ -27,6 +27,10 @@ pub mod tuning;
 mod weak;
 
 pub use config::{Channels, Config, ConfigError};
+pub use identifier::system::{
+    SystemConfig, SystemConfigError, SystemIdentifier, SystemModel, SystemSample, SystemSlot,
+    SystemSnapshot,
+};
 pub use identifier::{Counters, Identifier, IdentifierSlot, Rejection, Sample, Snapshot};
 pub use library::{Library, LibraryConfig, LibraryError, PolyFamily, RowTables, Term};
 pub use model::{MAX_SOLUTIONS, Model, Solution};

@@ -35,6 +35,34 @@ pub struct LogArgs {
     pub elf: Option<PathBuf>,
 }
 
+/// A CSV writer's error as the I/O error under it (so that a closed pipe stays one and ends
+/// `lssi` quietly, see [`crate::output::fail`]).
+fn csv_io(error: csv::Error) -> std::io::Error {
+    match error.into_kind() {
+        csv::ErrorKind::Io(e) => e,
+        other => std::io::Error::other(format!("{other:?}")),
+    }
+}
+
+/// Why a log without a single record prints nothing: one sentence naming the file.
+fn nothing_logged(file: &str, len: usize, partial: bool) -> String {
+    let magic = crate::telemetry::MAGIC.len();
+    if len == 0 {
+        format!("{file}: the file is empty, so it holds no telemetry record.")
+    } else if len < magic {
+        format!(
+            "{file}: the file holds only the first {len} of the log header's {magic} bytes (its writer stopped before logging anything), so it holds no telemetry record."
+        )
+    } else if partial {
+        format!(
+            "{file}: the log holds its header and one partial record ({} bytes, as a writer stopped mid-record leaves it), and no whole record.",
+            len - magic
+        )
+    } else {
+        format!("{file}: the log holds only its header, no telemetry record (nothing was logged).")
+    }
+}
+
 /// Runs `lssi log`.
 pub fn run(args: &LogArgs) -> Result<(), CliError> {
     let file = args.file.display().to_string();
@@ -50,6 +78,13 @@ pub fn run(args: &LogArgs) -> Result<(), CliError> {
         Ok(contents) => (contents.records, contents.partial_tail, contents.skipped),
         Err(error) => return Err(CliError::Input(format!("{file}: {error}."))),
     };
+    if records.is_empty() && skipped.is_empty() {
+        return Err(CliError::Input(nothing_logged(
+            &file,
+            bytes.len(),
+            partial.is_some(),
+        )));
+    }
     let entries = decode(&records, tables.as_ref());
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -65,10 +100,10 @@ pub fn run(args: &LogArgs) -> Result<(), CliError> {
         let mut writer = csv::Writer::from_writer(&mut out);
         let mut result = writer
             .write_record(["session", "time_s", "kind", "field", "value"])
-            .map_err(std::io::Error::other);
+            .map_err(csv_io);
         for row in csv_rows(&entries) {
             if result.is_ok() {
-                result = writer.write_record(&row).map_err(std::io::Error::other);
+                result = writer.write_record(&row).map_err(csv_io);
             }
         }
         result.and_then(|()| writer.flush())

@@ -1,20 +1,29 @@
-//! `lssi plot FILE.csv --out DIR`: pictures of a recording and its identified model.
+//! `lssi plot FILE.csv [MORE.csv | DIR]... --out DIR`: pictures of recordings and their
+//! identified models.
 //!
-//! The recording is identified exactly as `lssi identify` does it (same flags, the same
+//! Each recording is identified exactly as `lssi identify` does it (same flags, the same
 //! pipeline: the model drawn is the one it prints, refined unless `--no-refine`), then every
 //! figure of [`crate::plot`] is written to `DIR` as PNG and SVG, and the paths are printed.
-//! A figure the data cannot support (e.g. no model came out of a screening) is skipped with
-//! a note on stderr; the others are still written.
+//! Several recordings (a folder meaning its `*.csv` files) are plotted one after the other,
+//! each named `<stem>-<figure>`; one that fails says why on stderr and the others are still
+//! plotted, and the exit code says the worst (2 for a recording that cannot be used, 3 for a
+//! withheld model, 1 for figures that cannot be written).
+//!
+//! A model the quality gate withholds (`lssi identify` exits 3) is not drawn at all: no
+//! figure of that recording is written, and the reason is printed. A figure the data cannot
+//! support (e.g. too few rows for the neighbour curve) is skipped with a note on stderr; the
+//! others are still written. A figure whose file cannot be written is an error naming it.
 
-use std::path::PathBuf;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 
 use crate::commands::identify::IdentifyArgs;
 use crate::error::CliError;
-use crate::identify;
 use crate::identify::pipeline::{Failure, Refine};
-use crate::plot::{Units, plot_all};
+use crate::identify::{self, Options, batch};
+use crate::plot::{PlotError, Units, plot_all};
 use crate::recording::Recording;
 
 /// Arguments of `lssi plot`.
@@ -44,23 +53,118 @@ pub fn run(args: &PlotArgs) -> Result<(), CliError> {
             requirement: "a short unit name such as m or mm".into(),
         });
     }
+    let id = &args.identify;
+    for (flag, given) in [
+        ("--csv", id.csv),
+        ("--track", id.track),
+        ("--quantise", id.quantise.is_some()),
+    ] {
+        if given {
+            return Err(CliError::BadFlag {
+                flag,
+                value: "with lssi plot".into(),
+                requirement: "left out: it is a flag of lssi identify, and lssi plot draws figures"
+                    .into(),
+            });
+        }
+    }
     if args.out.exists() && !args.out.is_dir() {
         return Err(CliError::BadOutput {
             path: args.out.clone(),
             reason: "exists and is not a directory, so the figures cannot go there".into(),
         });
     }
-    let recording = Recording::read(&args.identify.file, &args.identify.columns)?;
+    let mut paths = vec![id.file.clone()];
+    paths.extend(id.more.iter().cloned());
+    let files = batch::expand(&paths)?;
+    same_stems(&files, &args.out)?;
+    if files.len() == 1 {
+        return plot_one(args, &options, &files[0]);
+    }
+    // Several: each plotted or failed in turn, each failure on stderr as it comes.
+    let mut failed: Vec<(String, CliError)> = Vec::new();
+    for file in &files {
+        if let Err(error) = plot_one(args, &options, file) {
+            eprintln!("lssi: {error}");
+            failed.push((file.display().to_string(), error));
+        }
+    }
+    if failed.is_empty() {
+        return Ok(());
+    }
+    let mut names: Vec<&str> = failed.iter().take(5).map(|(f, _)| f.as_str()).collect();
+    let more = failed.len().saturating_sub(names.len());
+    let and_more = if more > 0 {
+        format!(" and {more} more")
+    } else {
+        String::new()
+    };
+    names.dedup();
+    let summary = |what: &str| {
+        format!(
+            "{} of {} recordings {what}: {}{and_more} (each said why above).",
+            failed.len(),
+            files.len(),
+            names.join(", ")
+        )
+    };
+    let worst = failed
+        .iter()
+        .map(|(_, e)| e.exit_code())
+        .max_by_key(|&code| match code {
+            crate::error::EXIT_BAD_INPUT => 3,
+            crate::error::EXIT_NO_DYNAMICS => 2,
+            _ => 1,
+        });
+    Err(match worst {
+        Some(crate::error::EXIT_BAD_INPUT) => CliError::Input(summary("could not be plotted")),
+        Some(crate::error::EXIT_NO_DYNAMICS) => CliError::NoDynamics(summary(
+            "were not plotted because their models are withheld",
+        )),
+        _ => CliError::Write {
+            path: args.out.clone(),
+            source: std::io::Error::other(summary("have figures that could not be written")),
+        },
+    })
+}
+
+/// Two recordings of the same name (in different folders) would write the same figure files.
+fn same_stems(files: &[PathBuf], out: &Path) -> Result<(), CliError> {
+    let mut seen: HashMap<std::ffi::OsString, &Path> = HashMap::new();
+    for file in files {
+        let stem = file.file_stem().unwrap_or_default().to_owned();
+        if let Some(first) = seen.insert(stem, file) {
+            return Err(CliError::Input(format!(
+                "{} and {} have the same name, so their figures would overwrite each other in {}; plot them into different --out folders.",
+                first.display(),
+                file.display(),
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Plots one recording: its figures written and their paths printed, or why not.
+fn plot_one(args: &PlotArgs, options: &Options, file: &Path) -> Result<(), CliError> {
+    if let Some(problem) = batch::folder_problem(file) {
+        return Err(CliError::Input(problem));
+    }
+    let recording = Recording::read(file, &args.identify.columns)?;
     // The model `lssi identify` prints, through the same pipeline (refined unless
-    // --no-refine; a model the quality gate withholds is not drawn).
+    // --no-refine); a model the quality gate withholds is not drawn.
     let refine = if args.identify.no_refine {
         Refine::No("not refined (--no-refine)")
     } else {
         Refine::Yes
     };
-    let done = match identify::pipeline::identify(&recording, &options, refine) {
+    let done = match identify::pipeline::identify(&recording, options, refine) {
         Ok(done) => done,
-        Err(Failure::Withheld(sentence, ..)) => return Err(CliError::NoDynamics(sentence)),
+        Err(Failure::Withheld(sentence, ..)) => {
+            return Err(CliError::NoDynamics(format!(
+                "{sentence} No figure of it was drawn."
+            )));
+        }
         Err(Failure::Error(e)) => return Err(CliError::Identify(e)),
     };
     let report = done.report;
@@ -75,26 +179,47 @@ pub fn run(args: &PlotArgs) -> Result<(), CliError> {
     let units = Units {
         x: args.x_unit.clone(),
     };
-    let (written, skipped) = plot_all(
+    let figures = plot_all(
         &recording,
-        &options,
+        options,
         &report,
         prediction.as_deref(),
         &args.out,
         &units,
     )?;
-    for note in &skipped {
-        eprintln!("lssi: figure skipped: {note}");
+    for note in &figures.skipped {
+        eprintln!("lssi: {}: figure skipped: {note}", file.display());
     }
     if args.identify.json {
-        let object =
-            serde_json::json!({ "figures": written, "skipped": skipped, "report": report });
+        let failed: Vec<String> = figures.failed.iter().map(ToString::to_string).collect();
+        let object = serde_json::json!({
+            "file": file,
+            "figures": figures.written,
+            "skipped": figures.skipped,
+            "failed": failed,
+            "report": report,
+        });
         crate::outln!("{object}");
     } else {
-        for w in &written {
+        for w in &figures.written {
             crate::outln!("{}", w.png.display());
             crate::outln!("{}", w.svg.display());
         }
     }
-    Ok(())
+    match figures.failed.first() {
+        None => Ok(()),
+        Some(PlotError::Write { path, reason }) => {
+            let others = figures.failed.len() - 1;
+            let reason = if others > 0 {
+                format!("{reason} (and {others} more of its figures could not be written)")
+            } else {
+                reason.clone()
+            };
+            Err(CliError::Write {
+                path: path.clone(),
+                source: std::io::Error::other(reason),
+            })
+        }
+        Some(other) => Err(CliError::Input(other.to_string())),
+    }
 }

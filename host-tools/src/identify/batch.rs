@@ -17,34 +17,51 @@ use crate::identify::pipeline::Refine;
 use crate::identify::{self, Options, Report};
 use crate::recording::{ColumnNames, Recording};
 
-/// The files named: each path as given, a folder as its `*.csv` files in name order.
+/// The files named: each path as given, a folder as its `*.csv` files in name order. A folder
+/// that cannot be read or holds no `.csv` file stays in the list as itself, so that it gets a
+/// row with its error (see [`folder_problem`]) while the other files are still identified.
 pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>, CliError> {
     let mut files = Vec::new();
     for path in paths {
         if path.is_dir() {
-            let entries = std::fs::read_dir(path).map_err(|e| {
-                CliError::Input(format!(
-                    "{}: the folder cannot be read ({e}).",
-                    path.display()
-                ))
-            })?;
-            let mut found: Vec<PathBuf> = entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "csv") && p.is_file())
-                .collect();
-            found.sort();
-            if found.is_empty() {
-                return Err(CliError::Input(format!(
-                    "{}: the folder holds no .csv recording.",
-                    path.display()
-                )));
+            match csv_files(path) {
+                Ok(found) if !found.is_empty() => files.extend(found),
+                _ => files.push(path.clone()),
             }
-            files.extend(found);
         } else {
             files.push(path.clone());
         }
     }
     Ok(files)
+}
+
+/// The `*.csv` files of a folder, in name order.
+fn csv_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "csv") && p.is_file())
+        .collect();
+    found.sort();
+    Ok(found)
+}
+
+/// Why a folder named in a batch gave no recording (one sentence naming it), or `None` when
+/// `path` is not a folder or holds `.csv` files.
+pub fn folder_problem(path: &Path) -> Option<String> {
+    if !path.is_dir() {
+        return None;
+    }
+    match csv_files(path) {
+        Err(e) => Some(format!(
+            "{}: the folder cannot be read ({e}).",
+            path.display()
+        )),
+        Ok(found) if found.is_empty() => Some(format!(
+            "{}: the folder holds no .csv recording.",
+            path.display()
+        )),
+        Ok(_) => None,
+    }
 }
 
 pub use crate::identify::pipeline::{Failure, Identified, Outcome, warnings};
@@ -55,6 +72,9 @@ pub const NOT_REFINED: &str =
     "not refined: several recordings are identified at once (--refine refines each)";
 
 fn one(path: &Path, columns: &ColumnNames, options: &Options, refine: bool) -> Outcome {
+    if let Some(problem) = folder_problem(path) {
+        return Err(Failure::Error(problem));
+    }
     let recording = Recording::read(path, columns).map_err(|e| Failure::Error(e.to_string()))?;
     let refine = if refine {
         Refine::Yes

@@ -13,7 +13,10 @@
 //! - an isolated spike is a sample whose distance from the cubic through its four neighbours,
 //!   r = s − (−s₋₂ + 4s₋₁ + 4s₊₁ − s₊₂)/6, is more than [`SPIKE_MADS`] robust standard
 //!   deviations (1.4826 · the median absolute deviation of r over the recording, at least the
-//!   channel's quantisation step) and at least [`SPIKE_DOMINANCE`] times its neighbours' r
+//!   channel's quantisation step) — times how much further than a Gaussian's the channel's
+//!   own noise reaches, so that heavy-tailed noise such as a laser vibrometer's is not taken
+//!   for spikes (see `Limit::of`) — and at least [`SPIKE_DOMINANCE`] times the r of the samples
+//!   two either side
 //!   (a spike of height h gives r = h at its sample and −2h/3 at its neighbours; a step gives
 //!   ±h/2 at two samples and is not a spike). A spike whose four neighbours are kept is
 //!   *repaired*: the identifier is given that cubic's value instead (the other channels as
@@ -22,6 +25,10 @@
 //!   `lssi gen eveh`'s harvester by up to 2.1 % (a spike at data row 15001; 0.01 % repaired).
 //!   The cubic's error is of order h⁴ times the fourth derivative, far under the noise at the
 //!   sampling rates the identifier needs; its noise is √(34/36) of one sample's.
+//!   The first and last two samples of a stretch (the record's ends, or beside a gap) have no
+//!   two neighbours on each side: they are judged by the one-sided residual from the cubic
+//!   fitted to the samples 2 to 25 away, against that stencil's own limit, so a spike there is
+//!   found where it is (issue 25), not at its neighbour; such a spike is left out.
 //!
 //! The excitation frequency is estimated from windows within clean stretches only, and the
 //! derivative window from the clean samples (see [`crate::identify::configure`]).
@@ -442,40 +449,229 @@ pub fn where_text(rows: &[usize]) -> String {
     }
 }
 
-/// The cubic residual r of every usable sample of one channel, its median and its robust
-/// standard deviation (1.4826 · MAD); `None` on fewer than 16 usable samples.
-#[allow(clippy::type_complexity)]
-fn residuals(s: &[f64], scan: &Scan) -> Option<(Vec<Option<f64>>, f64, f64)> {
-    let n = s.len();
-    if n < 16 {
-        return None;
+/// The Gaussian value of q₉₉/q₉₅ of |r| (2.5758/1.9600), as a power-law exponent:
+/// ln 5 / ln(2.5758/1.9600) ≈ 5.89 (see [`Limit::of`]).
+fn gaussian_alpha() -> f64 {
+    5f64.ln() / (2.5758f64 / 1.9600).ln()
+}
+
+/// Samples of the one-sided cubic fit that judges the first and last two samples of a stretch
+/// (offsets 2 to 25 from the sample, skipping its neighbour so that a spike there does not
+/// move it). 24 samples give a noise gain of 1.63 (the centred stencil's: 1.39; 8 samples:
+/// 5.3), so a spike at the end is found from 20 noise σ on.
+const EDGE_FIT: usize = 24;
+
+/// At most this many positions measure the one-sided stencil's limit (evenly spread).
+const EDGE_SAMPLE: usize = 100_000;
+
+/// The centre of a residual and the limit of |r − centre| beyond which a sample is a spike.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Limit {
+    centre: f64,
+    limit: f64,
+}
+
+impl Limit {
+    /// The limit of one stencil's residuals over a channel: [`SPIKE_MADS`] robust standard
+    /// deviations σ (1.4826 · MAD, at least `floor`, the quantisation step through the
+    /// stencil), times how much further than a Gaussian's the channel's own noise reaches.
+    ///
+    /// The reach extrapolates the tail as a power law through the 95th and 99th percentiles
+    /// q₉₅, q₉₉ of |r − centre|: P(|r| > q) ∝ q^(−α), α = ln 5 / ln(q₉₉/q₉₅), to the largest of
+    /// 100 such records, q₉₉ m^(1/α) for m residuals. The same extrapolation of Gaussian noise
+    /// (q₉₉ = 2.576 σ, α = 5.89) is the reference: Gaussian noise keeps 12 σ at any length,
+    /// while heavy-tailed noise, such as a laser vibrometer's (speckle dropouts: BistableX's
+    /// velocity has q₉₉ = 5–10 σ, α ≈ 2, and single-sample excursions up to 140 σ, like
+    /// Student's t with 2–3 degrees of freedom), gets a limit beyond what its own excursions
+    /// reach, so a noisy channel is not taken for a spiky one. A spike moves five residuals,
+    /// so the percentiles hold while fewer than one sample in 500 is a spike. q₉₅ is taken at
+    /// least 1.96 σ, its Gaussian value, so that a quantised channel whose residuals are
+    /// mostly zero does not extrapolate from nothing.
+    fn of(residuals: &[Option<f64>], floor: f64) -> Option<Self> {
+        let mut values: Vec<f64> = residuals
+            .iter()
+            .flatten()
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        let m = values.len();
+        if m < 16 {
+            return None;
+        }
+        let centre = median(&mut values);
+        let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
+        let sigma = (1.4826 * median(&mut deviations)).max(floor);
+        if !(sigma > 0.0) {
+            return None;
+        }
+        let mut quantile = |p: f64| {
+            let k = ((p * m as f64) as usize).min(m - 1);
+            *deviations.select_nth_unstable_by(k, f64::total_cmp).1
+        };
+        let q95 = quantile(0.95).max(1.96 * sigma);
+        let q99 = quantile(0.99);
+        let reach = if q99 > q95 {
+            let alpha = 5f64.ln() / (q99 / q95).ln();
+            q99 * (m as f64).powf(1.0 / alpha)
+        } else {
+            q99
+        };
+        let gaussian = 2.5758 * sigma * (m as f64).powf(1.0 / gaussian_alpha());
+        let limit = SPIKE_MADS * sigma * (reach / gaussian).max(1.0);
+        limit.is_finite().then_some(Self { centre, limit })
     }
+
+    /// |r − centre|.
+    fn size(&self, r: f64) -> f64 {
+        if r.is_finite() {
+            (r - self.centre).abs()
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// The noise gain of the centred stencil, √(1 + 2 (2/3)² + 2 (1/6)²) ≈ 1.394: the quantisation
+/// step through it.
+fn centred_gain() -> f64 {
+    (1.0f64 + 8.0 / 9.0 + 1.0 / 18.0).sqrt()
+}
+
+/// The quantisation step of a channel: the smallest non-zero difference of consecutive
+/// samples (0 when there is none).
+fn quantum(s: &[f64]) -> f64 {
+    let q = s
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if q.is_finite() { q } else { 0.0 }
+}
+
+/// The centred cubic residual r = s − (−s₋₂ + 4s₋₁ + 4s₊₁ − s₊₂)/6 of every sample whose four
+/// neighbours are kept and evenly spaced.
+fn centred(s: &[f64], scan: &Scan) -> Vec<Option<f64>> {
+    let n = s.len();
     let usable = |i: usize| {
         i >= 2
             && i + 2 < n
             && (i - 2..=i + 2).all(|j| !scan.skip[j] && s[j].is_finite())
             && (i - 1..=i + 2).all(|j| !scan.restart[j])
     };
-    let r: Vec<Option<f64>> = (0..n)
+    (0..n)
         .map(|i| {
             usable(i).then(|| {
                 s[i] - (-(s[i - 2] / 6.0) + s[i - 1] / 1.5 + s[i + 1] / 1.5 - s[i + 2] / 6.0)
             })
         })
-        .collect();
-    let mut values: Vec<f64> = r
-        .iter()
-        .flatten()
-        .copied()
-        .filter(|v| v.is_finite())
-        .collect();
-    if values.len() < 16 {
+        .collect()
+}
+
+/// The value at `at` of the least-squares cubic through `points` (offset, value); `None` with
+/// fewer than five points or a singular fit.
+fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
+    if points.len() < 5 {
         return None;
     }
-    let centre = median(&mut values);
-    let mut deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
-    let sigma = 1.4826 * median(&mut deviations);
-    Some((r, centre, sigma))
+    let mean = points.iter().map(|p| p.0).sum::<f64>() / points.len() as f64;
+    let spread = points
+        .iter()
+        .map(|p| (p.0 - mean).abs())
+        .fold(0.0f64, f64::max);
+    if !(spread > 0.0) {
+        return None;
+    }
+    let basis = |k: f64| {
+        let z = (k - mean) / spread;
+        [1.0, z, z * z, z * z * z]
+    };
+    // Normal equations A c = b, solved by Gaussian elimination with partial pivoting.
+    let mut a = [[0.0f64; 5]; 4];
+    for &(k, value) in points {
+        let phi = basis(k);
+        for r in 0..4 {
+            for c in 0..4 {
+                a[r][c] += phi[r] * phi[c];
+            }
+            a[r][4] += phi[r] * value;
+        }
+    }
+    for col in 0..4 {
+        let pivot = (col..4).max_by(|&p, &q| a[p][col].abs().total_cmp(&a[q][col].abs()))?;
+        a.swap(col, pivot);
+        if !(a[col][col].abs() > 1e-12) {
+            return None;
+        }
+        for r in col + 1..4 {
+            let f = a[r][col] / a[col][col];
+            for c in col..5 {
+                a[r][c] -= f * a[col][c];
+            }
+        }
+    }
+    let mut coef = [0.0f64; 4];
+    for r in (0..4).rev() {
+        let tail: f64 = (r + 1..4).map(|c| a[r][c] * coef[c]).sum();
+        coef[r] = (a[r][4] - tail) / a[r][r];
+    }
+    let phi = basis(at);
+    Some((0..4).map(|r| coef[r] * phi[r]).sum())
+}
+
+/// The weights of the one-sided stencil: sᵢ predicted by the least-squares cubic through
+/// sᵢ₊₂ … sᵢ₊₂₅ (index 0 is offset 2); the same weights, mirrored, predict from sᵢ₋₂₅ … sᵢ₋₂.
+fn edge_weights() -> [f64; EDGE_FIT] {
+    let mut w = [0.0; EDGE_FIT];
+    for (k, wk) in w.iter_mut().enumerate() {
+        let points: Vec<(f64, f64)> = (0..EDGE_FIT)
+            .map(|j| ((j + 2) as f64, if j == k { 1.0 } else { 0.0 }))
+            .collect();
+        *wk = cubic_fit_at(&points, 0.0).unwrap_or(0.0);
+    }
+    w
+}
+
+/// The sample at offset `k` (2 ≤ k ≤ 25) from `i` in the stencil's direction.
+fn edge_at(i: usize, k: usize, forward: bool) -> usize {
+    if forward { i + k } else { i - k }
+}
+
+/// Whether the samples at offsets 2..=25 from `i` (ahead, or behind) are all in the
+/// recording, kept and finite, and evenly spaced from `i` on.
+fn edge_usable(s: &[f64], scan: &Scan, i: usize, forward: bool) -> bool {
+    let last = EDGE_FIT + 1;
+    let inside = if forward {
+        i + last < s.len()
+    } else {
+        i >= last
+    };
+    inside
+        && (2..=last).all(|k| {
+            let j = edge_at(i, k, forward);
+            !scan.skip[j] && s[j].is_finite()
+        })
+        // restart[j]: a gap between j − 1 and j.
+        && (1..=last).all(|k| {
+            let j = edge_at(i, k, forward);
+            !scan.restart[if forward { j } else { j + 1 }]
+        })
+}
+
+/// The one-sided residual sᵢ − (the stencil's prediction) at a sample, if usable.
+fn one_sided_at(
+    s: &[f64],
+    scan: &Scan,
+    w: &[f64; EDGE_FIT],
+    i: usize,
+    forward: bool,
+) -> Option<f64> {
+    if scan.skip[i] || !s[i].is_finite() || !edge_usable(s, scan, i, forward) {
+        return None;
+    }
+    let predicted: f64 = (0..EDGE_FIT)
+        .map(|k| w[k] * s[edge_at(i, k + 2, forward)])
+        .sum();
+    Some(s[i] - predicted)
 }
 
 /// The spike rule's threshold on one channel, from a stretch of it: the centre of the cubic
@@ -483,50 +679,83 @@ fn residuals(s: &[f64], scan: &Scan) -> Option<(Vec<Option<f64>>, f64, f64)> {
 /// [`SPIKE_DOMINANCE`] over its neighbours). For a reader that sees the recording a sample at a
 /// time after this stretch (`crate::identify::stream`).
 pub fn spike_limit(s: &[f64], scan: &Scan) -> Option<(f64, f64)> {
-    let (_, centre, sigma) = residuals(s, scan)?;
-    let quantum = s
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| d.is_finite() && *d > 0.0)
-        .fold(f64::INFINITY, f64::min);
-    let scale = sigma.max(if quantum.is_finite() { quantum } else { 0.0 });
-    (scale > 0.0).then_some((centre, SPIKE_MADS * scale))
+    let limit = Limit::of(&centred(s, scan), quantum(s) * centred_gain())?;
+    Some((limit.centre, limit.limit))
 }
 
 /// The isolated spikes of one channel (see the module docs), among samples that `scan` keeps
-/// so far and whose four neighbours are kept and evenly spaced.
+/// so far.
+///
+/// A sample with its four neighbours kept and evenly spaced is judged by the centred cubic
+/// residual; the first and last two samples of a stretch (the record's ends, or beside a gap
+/// or a left-out sample) by the one-sided residual from the cubic fitted to the samples 2 to
+/// 25 away on the side that has them, against that stencil's own limit measured over the
+/// channel. That fit leaves out the samples whose centred residual is beyond its limit (a
+/// spike there, and its neighbours), so a spike near the end does not make one at the end.
+/// A spike must exceed the residuals of the samples two either side, whichever stencil judges
+/// them, by [`SPIKE_DOMINANCE`]: an interior spike of height h gives h there, 2h/3 one away and
+/// h/6 two away; one at the first sample gives h there and h/6 at the third.
 fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
     let n = s.len();
-    let Some((r, centre, sigma)) = residuals(s, scan) else {
+    let q = quantum(s);
+    let r = centred(s, scan);
+    let Some(lc) = Limit::of(&r, q * centred_gain()) else {
         return Vec::new();
     };
-    // The quantisation step: the smallest non-zero difference of consecutive samples.
-    let quantum = s
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| d.is_finite() && *d > 0.0)
-        .fold(f64::INFINITY, f64::min);
-    let scale = sigma.max(if quantum.is_finite() { quantum } else { 0.0 });
-    if !(scale > 0.0) {
-        return Vec::new();
-    }
-    let limit = SPIKE_MADS * scale;
-    let size = |i: usize| {
-        r.get(i)
-            .copied()
-            .flatten()
-            .map_or(0.0, |v| (v - centre).abs())
+    let w = edge_weights();
+    let edge_floor = q * (1.0 + w.iter().map(|x| x * x).sum::<f64>()).sqrt();
+    let stride = n.div_ceil(EDGE_SAMPLE).max(1);
+    let measured = |forward: bool| {
+        let sample: Vec<Option<f64>> = (0..n)
+            .step_by(stride)
+            .map(|i| one_sided_at(s, scan, &w, i, forward))
+            .collect();
+        Limit::of(&sample, edge_floor)
     };
-    (2..n.saturating_sub(2))
-        .filter(|&i| {
-            let Some(ri) = r[i] else { return false };
-            let here = if ri.is_finite() {
-                (ri - centre).abs()
-            } else {
-                f64::INFINITY
+    let (lf, lb) = (measured(true), measured(false));
+    let candidate = |j: usize| r[j].is_some_and(|v| lc.size(v) > lc.limit);
+    // The edge samples' residual and limit: forward where the span ahead is usable, else
+    // backward; refitted without candidate spikes in the span.
+    let edge: Vec<Option<(f64, Limit)>> = (0..n)
+        .map(|i| {
+            if r[i].is_some() || scan.skip[i] || !s[i].is_finite() {
+                return None;
+            }
+            let (forward, limit) = match (edge_usable(s, scan, i, true), lf, lb) {
+                (true, Some(l), _) => (true, l),
+                (_, _, Some(l)) if edge_usable(s, scan, i, false) => (false, l),
+                _ => return None,
             };
-            let neighbours = size(i - 1).max(size(i + 1));
-            here > limit && here >= SPIKE_DOMINANCE * neighbours
+            let points: Vec<(f64, f64)> = (2..=EDGE_FIT + 1)
+                .map(|k| (k, edge_at(i, k, forward)))
+                .filter(|&(_, j)| !candidate(j))
+                .map(|(k, j)| (k as f64, s[j]))
+                .collect();
+            let value = if points.len() == EDGE_FIT {
+                one_sided_at(s, scan, &w, i, forward)?
+            } else {
+                s[i] - cubic_fit_at(&points, 0.0)?
+            };
+            Some((value, limit))
+        })
+        .collect();
+    let size = |i: usize| match (r.get(i).copied().flatten(), edge.get(i).copied().flatten()) {
+        (Some(v), _) => lc.size(v),
+        (None, Some((v, l))) => l.size(v),
+        (None, None) => 0.0,
+    };
+    (0..n)
+        .filter(|&i| {
+            let beyond = match (r[i], edge[i]) {
+                (Some(v), _) => lc.size(v) > lc.limit,
+                (None, Some((v, l))) => l.size(v) > l.limit,
+                (None, None) => false,
+            };
+            let neighbours = (i.saturating_sub(2)..=i + 2)
+                .filter(|&j| j != i)
+                .map(size)
+                .fold(0.0, f64::max);
+            beyond && size(i) >= SPIKE_DOMINANCE * neighbours
         })
         .collect()
 }

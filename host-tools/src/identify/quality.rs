@@ -557,6 +557,24 @@ pub fn assess(
             names.join(", ")
         ));
     }
+    // A swept forcing without its u column: named as such when the model takes the forcing
+    // for cos(Ωt) at one Ω, fails for it, or has no forcing where the recording grows or goes
+    // on after the model's free run has died out (a ringdown's drifting frequency, which a
+    // model without forcing follows, is not a reason).
+    let forced = report
+        .model
+        .iter()
+        .any(|(t, c)| *c != 0.0 && matches!(t, lssi_core::Term::Sin(_) | lssi_core::Term::Cos(_)));
+    if recording.u.is_none()
+        && (forced
+            || !quality.failures.is_empty()
+            || crate::identify::sweep::grows(recording)
+            || crate::identify::sweep::outlasts_model(recording, report) == Some(true))
+        && let Some(sweep) = crate::identify::sweep::sweep(recording)
+    {
+        quality.failures = vec![sweep.sentence()];
+        return quality;
+    }
     if let Some(other) = other {
         let names = |r: &Report| r.terms.iter().map(|t| t.term.clone()).collect::<Vec<_>>();
         let agree = names(report) == names(other);

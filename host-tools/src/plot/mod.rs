@@ -36,10 +36,23 @@ pub struct Written {
     pub svg: PathBuf,
 }
 
+/// What [`plot_all`] did: the figures written, those the data could not support (a sentence
+/// each, as `name: why`) and those whose files could not be written ([`PlotError::Write`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Figures {
+    /// The figures written.
+    pub written: Vec<Written>,
+    /// `name: why` for each figure the data could not support.
+    pub skipped: Vec<String>,
+    /// Each figure whose file could not be written (an error naming the file).
+    pub failed: Vec<PlotError>,
+}
+
 /// Draws every figure of `recording`, identified as `report` says (with the options that made
 /// it), into `dir` (created if missing); `prediction` is the short-horizon figure `lssi
 /// identify` reports, named in the model figure's title beside the free run's. Returns the
-/// files written and, for each figure that could not be drawn, a sentence saying why.
+/// files written, for each figure the data could not support a sentence saying why, and the
+/// figures whose files could not be written.
 pub fn plot_all(
     recording: &Recording,
     options: &Options,
@@ -47,7 +60,7 @@ pub fn plot_all(
     prediction: Option<&str>,
     dir: &Path,
     units: &Units,
-) -> Result<(Vec<Written>, Vec<String>), CliError> {
+) -> Result<Figures, CliError> {
     std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
         path: dir.to_path_buf(),
         source: e,
@@ -58,12 +71,12 @@ pub fn plot_all(
         .path
         .file_stem()
         .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
-    let mut written = Vec::new();
-    let mut skipped = Vec::new();
+    let mut figures = Figures::default();
     let mut emit = |name: &str, result: Result<Written, PlotError>| match result {
-        Ok(w) => written.push(w),
-        Err(PlotError::Skipped(why)) => skipped.push(format!("{name}: {why}")),
-        Err(e) => skipped.push(format!("{name}: {e}")),
+        Ok(w) => figures.written.push(w),
+        Err(e @ PlotError::Write { .. }) => figures.failed.push(e),
+        Err(PlotError::Skipped(why)) => figures.skipped.push(format!("{name}: {why}")),
+        Err(e) => figures.skipped.push(format!("{name}: {e}")),
     };
     let base = dir.join(&stem);
     let velocity = data::velocity(recording, &config);
@@ -97,5 +110,5 @@ pub fn plot_all(
         "phase",
         draw::phase(&base, recording, &velocity, report, units),
     );
-    Ok((written, skipped))
+    Ok(figures)
 }

@@ -273,10 +273,12 @@ impl<T: Real, const P: usize> Factor<T, P> {
 }
 
 mod correct;
+mod multi;
 mod pair;
 mod solve;
 mod view;
 
+pub use multi::MultiFactor;
 pub use pair::FactorPair;
 use solve::triangularise;
 use view::Layout;

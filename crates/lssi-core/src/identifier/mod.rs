@@ -356,5 +356,6 @@ mod rows;
 mod screening;
 mod smooth;
 mod snapshot;
+pub mod system;
 #[cfg(test)]
 mod tests;

@@ -479,7 +479,12 @@ pub(crate) fn powi<T: Real>(x: T, n: u8) -> T {
     r
 }
 
+mod states;
 mod term;
+pub use states::{
+    Electrical, MAX_COUPLING_ORDER, MAX_ELECTRICAL, STATES, StateLibrary, StateLibraryConfig,
+    StateLibraryError, StateTerm, StateTermName,
+};
 pub use term::{Term, TermName};
 
 #[cfg(test)]

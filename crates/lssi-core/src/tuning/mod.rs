@@ -107,6 +107,13 @@ pub const MIN_TEST_ROWS: usize = 64;
 pub const TEST_WINDOW_FRACTION: usize = 16;
 /// The polynomial degree under test-function rows.
 pub const TEST_DEGREE: u8 = 5;
+/// At a field device's rates (a third of the period under [`MIN_TEST_ROWS`]), the test
+/// function spans half the period, at most [`MIN_TEST_ROWS`] rows, and at least this many.
+pub const LOW_RATE_MIN_TEST_ROWS: usize = 12;
+/// The derivative window under a low rate's test function, in samples.
+pub const LOW_RATE_WINDOW: usize = 11;
+/// Its polynomial degree.
+pub const LOW_RATE_DEGREE: u8 = 7;
 
 /// Test-function rows for a recording, and the short derivative window under them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -137,9 +144,18 @@ pub struct TestRowsChoice {
 /// the test function does the averaging. Between 31 and 127 samples the eq. 17 results
 /// hardly moved.
 ///
-/// `None` (rows as they are, the window from [`choose_window`]) without a period or when a
-/// third of it is under [`MIN_TEST_ROWS`] samples (a signal sampled that coarsely leaves no
-/// room for smooth weights).
+/// At the rates a field device samples (30–190 samples a period, a third of it under
+/// [`MIN_TEST_ROWS`]), the test function spans half the period (at most [`MIN_TEST_ROWS`]
+/// rows) over a window of [`LOW_RATE_WINDOW`] samples of degree [`LOW_RATE_DEGREE`]. Rows
+/// as they are lose the damping there: the second derivative of a signal sampled that
+/// coarsely is too noisy for a term 2 % of x'' (the eveh harvester at 30–60 samples a
+/// period, 1 % noise, x only: 26–56 % mean coefficient error, v dropped). Half a period and
+/// 11 samples of degree 7 were the best of (⅓, ½, ¾, 1) × (7/4, 9/5, 11/5, 11/7) on seeds
+/// 1–5 of bench/choice/testset.py's low-rate kinds, with Ω given.
+///
+/// `None` (rows as they are, the window from [`choose_window`]) without a period or when
+/// the test function would be under [`LOW_RATE_MIN_TEST_ROWS`] samples (a signal sampled
+/// that coarsely, under 24 samples a period, leaves no room for smooth weights).
 pub fn choose_test_rows<const W: usize>(
     period: Option<f64>,
     samples: usize,
@@ -148,9 +164,22 @@ pub fn choose_test_rows<const W: usize>(
     if !(period.is_finite() && period > 0.0) {
         return None;
     }
-    let width = ((period / TEST_PERIOD_DIVISOR) as usize)
-        .min(samples / 16)
-        .min(usize::from(u16::MAX));
+    let third = (period / TEST_PERIOD_DIVISOR) as usize;
+    if third < MIN_TEST_ROWS {
+        let width = ((period / 2.0) as usize)
+            .min(MIN_TEST_ROWS)
+            .min(samples / 16);
+        let width = width - width % 4;
+        if width < LOW_RATE_MIN_TEST_ROWS || W < LOW_RATE_WINDOW {
+            return None;
+        }
+        return Some(TestRowsChoice {
+            test_rows: width as u16,
+            window: LOW_RATE_WINDOW,
+            degree: LOW_RATE_DEGREE,
+        });
+    }
+    let width = third.min(samples / 16).min(usize::from(u16::MAX));
     let width = width - width % 4;
     if width < MIN_TEST_ROWS {
         return None;

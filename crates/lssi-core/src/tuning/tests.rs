@@ -9,7 +9,15 @@ fn test_rows_from_the_period() {
     let c = choose_test_rows::<1023>(Some(200.0), 100_000).unwrap();
     assert_eq!((c.test_rows, c.window), (64, 9));
     assert_eq!(choose_test_rows::<1023>(None, 100_000), None);
-    assert_eq!(choose_test_rows::<1023>(Some(150.0), 100_000), None);
+    // A field device's rates: half the period, at most 64 rows, under 11 samples of degree 7.
+    let c = choose_test_rows::<1023>(Some(150.0), 100_000).unwrap();
+    assert_eq!((c.test_rows, c.window, c.degree), (64, 11, 7));
+    let c = choose_test_rows::<1023>(Some(60.0), 100_000).unwrap();
+    assert_eq!((c.test_rows, c.window, c.degree), (28, 11, 7));
+    let c = choose_test_rows::<1023>(Some(30.0), 100_000).unwrap();
+    assert_eq!(c.test_rows, 12);
+    assert_eq!(choose_test_rows::<1023>(Some(23.0), 100_000), None);
+    assert_eq!(choose_test_rows::<9>(Some(60.0), 100_000), None);
     assert_eq!(choose_test_rows::<1023>(Some(f64::NAN), 100_000), None);
     let c = choose_test_rows::<1023>(Some(1e9), 1 << 30).unwrap();
     assert_eq!((c.test_rows, c.window), (65532, 1023));

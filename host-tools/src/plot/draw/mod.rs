@@ -43,9 +43,17 @@ pub enum PlotError {
     /// The data do not support this figure (a sentence saying why).
     #[error("{0}")]
     Skipped(String),
-    /// Drawing or writing failed.
+    /// Drawing failed.
     #[error("cannot draw the figure: {0}.")]
     Draw(String),
+    /// The figure's file cannot be written.
+    #[error("{}: cannot write the figure: {reason}.", .path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong (what the operating system said).
+        reason: String,
+    },
 }
 
 impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for PlotError {
@@ -198,17 +206,27 @@ fn write(base: &Path, name: &str, figure: &impl Figure) -> Result<Written, PlotE
     };
     let (png, svg) = (file("png"), file("svg"));
     let size = figure.size();
+    // Each file is created first, so that a path that cannot be written (a missing or
+    // read-only folder, a folder in the file's place) fails with what the system says; a
+    // failure to save the figure is named with its file too. (A figure the data cannot be
+    // drawn from stays a `Draw` error: skipped with a note.)
+    let failed = |path: &Path, reason: String| PlotError::Write {
+        path: path.to_path_buf(),
+        reason,
+    };
+    std::fs::File::create(&png).map_err(|e| failed(&png, e.to_string()))?;
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
         root.fill(&WHITE)?;
         figure.draw(&root)?;
-        root.present()?;
+        root.present().map_err(|e| failed(&png, e.to_string()))?;
     }
+    std::fs::File::create(&svg).map_err(|e| failed(&svg, e.to_string()))?;
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
         root.fill(&WHITE)?;
         figure.draw(&root)?;
-        root.present()?;
+        root.present().map_err(|e| failed(&svg, e.to_string()))?;
     }
     Ok(Written {
         figure: name.into(),

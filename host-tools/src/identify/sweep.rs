@@ -1,0 +1,254 @@
+//! A swept excitation recorded without its `u` column: the frequency of x drifts steadily
+//! across the record (a chirp), which no model with a forcing cos(Ωt) at one Ω can follow.
+//!
+//! The record's longest clean stretch is cut into [`SEGMENTS`] equal segments; in each, the
+//! dominant frequency is the peak of the Hann-windowed, zero-padded spectrum (interpolated on
+//! its neighbours), taken only when it is a clear line ([`MIN_PROMINENCE`] times the median
+//! power) and the segment holds [`MIN_PERIODS`] periods of it. A straight drift is fitted to
+//! the lines (Theil–Sen: robust to a transient at the start or a segment where a harmonic
+//! wins); the record is a sweep when [`INLIERS`] of the segments lie on it (within
+//! [`TOLERANCE`] or a resolution width) over at least half of the record, and
+//! it moves by [`MIN_DRIFT`] of the frequency and [`MIN_RESOLUTIONS`] resolution widths.
+//!
+//! A steady response keeps one line (its drift is the estimate's noise); a chaotic one's line
+//! jumps about (its lines do not lie on one straight drift), and a transient that settles
+//! leaves the lines of most segments at one frequency.
+
+use crate::identify::blemish::Scan;
+use crate::recording::Recording;
+
+/// Segments the record is cut into at most.
+pub const SEGMENTS: usize = 12;
+/// Segments the record is cut into at least (tried with fewer, longer segments when too few
+/// hold [`MIN_PERIODS`] periods of their line at [`SEGMENTS`]).
+pub const MIN_SEGMENTS: usize = 6;
+/// The share of segments whose line must lie on the straight drift.
+pub const INLIERS: f64 = 0.75;
+/// How far (a fraction of the frequency, at least a resolution width) a segment's line may
+/// lie from the straight drift.
+pub const TOLERANCE: f64 = 0.04;
+/// A segment's line must stand this many times above the median of its spectrum.
+pub const MIN_PROMINENCE: f64 = 30.0;
+/// Periods of its line a segment must hold.
+pub const MIN_PERIODS: f64 = 2.5;
+/// The drift from the first segment to the last, a fraction of the lower frequency.
+pub const MIN_DRIFT: f64 = 0.08;
+/// The drift in resolution widths (2π over a segment's duration).
+pub const MIN_RESOLUTIONS: f64 = 1.0;
+
+/// A sweep found: the straight drift of the segments' lines.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sweep {
+    /// The drift's frequency in the first segment, rad/s.
+    pub from: f64,
+    /// The drift's frequency in the last segment, rad/s.
+    pub to: f64,
+    /// Each segment's duration, seconds.
+    pub seconds: f64,
+    /// Segments.
+    pub segments: usize,
+}
+
+impl Sweep {
+    /// The gate's sentence.
+    pub fn sentence(&self) -> String {
+        let (first, last) = (self.from, self.to);
+        format!(
+            "the forcing sweeps in frequency (a chirp): x's dominant frequency moves steadily from {first:.3} rad/s to {last:.3} rad/s over the record ({} segments of {:.3} s), which no forcing cos(Ωt) at one Ω describes; give the excitation as a u column (--u-col) or identify a stretch at one frequency",
+            self.segments, self.seconds
+        )
+    }
+}
+
+/// Each segment's dominant line (rad/s), or `None` when it has no clear one.
+pub fn segment_lines(t: &[f64], x: &[f64], segments: usize) -> Option<(Vec<Option<f64>>, f64)> {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    let n = x.len() / segments;
+    if n < 256 || t.len() != x.len() {
+        return None;
+    }
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    if !(dt > 0.0) {
+        return None;
+    }
+    let size = (n.next_power_of_two() * 4).min(1 << 20);
+    let n = n.min(size);
+    let seconds = n as f64 * dt;
+    let mut planner = FftPlanner::new();
+    let fft = planner.plan_fft_forward(size);
+    let lines = (0..segments)
+        .map(|s| {
+            let seg = &x[s * n..(s + 1) * n];
+            let mean = seg.iter().sum::<f64>() / n as f64;
+            let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); size];
+            for (i, v) in seg.iter().enumerate() {
+                let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+                buf[i] = Complex::new((v - mean) * w, 0.0);
+            }
+            fft.process(&mut buf);
+            let power: Vec<f64> = buf[..size / 2].iter().map(|c| c.norm_sqr()).collect();
+            // Bins per resolution width: size / n; the lowest line taken is two widths up.
+            let lowest = 2 * size / n;
+            let (k, peak) = power
+                .iter()
+                .enumerate()
+                .skip(lowest)
+                .take(size / 2 - lowest - 1)
+                .max_by(|a, b| a.1.total_cmp(b.1))?;
+            let mut sorted: Vec<f64> = power[lowest..].to_vec();
+            sorted.sort_by(f64::total_cmp);
+            let median = sorted[sorted.len() / 2];
+            if !(*peak > MIN_PROMINENCE * median) {
+                return None;
+            }
+            // Parabolic interpolation on the log power.
+            let (a, b, c) = (power[k - 1].ln(), peak.ln(), power[k + 1].ln());
+            let denominator = a - 2.0 * b + c;
+            let shift = if denominator < 0.0 {
+                (0.5 * (a - c) / denominator).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
+            let omega = 2.0 * std::f64::consts::PI * (k as f64 + shift) / (size as f64 * dt);
+            (omega * seconds / (2.0 * std::f64::consts::PI) >= MIN_PERIODS).then_some(omega)
+        })
+        .collect();
+    Some((lines, seconds))
+}
+
+/// Whether the recording's x is a sweep (see the module docs); never with a `u` column.
+pub fn sweep(recording: &Recording) -> Option<Sweep> {
+    if recording.u.is_some() {
+        return None;
+    }
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let t = &recording.t[stretch.clone()];
+    let x = &recording.x[stretch];
+    // Fewer, longer segments when a sweep's low end is too slow for short ones.
+    [SEGMENTS, (SEGMENTS + MIN_SEGMENTS) / 2, MIN_SEGMENTS]
+        .into_iter()
+        .find_map(|segments| drift(t, x, segments))
+}
+
+/// The straight drift of the lines of `segments` segments, when it is a sweep's.
+fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
+    let (lines, seconds) = segment_lines(t, x, segments)?;
+    let debug = std::env::var_os("LSSI_SWEEP_DEBUG").is_some();
+    if debug {
+        eprintln!("lssi: sweep: lines {lines:?}");
+    }
+    let measured: Vec<(usize, f64)> = lines
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| l.map(|l| (i, l)))
+        .collect();
+    let needed = (INLIERS * segments as f64).ceil() as usize;
+    if measured.len() < needed {
+        return None;
+    }
+    // Theil–Sen: the median of the pairwise slopes, then the median intercept.
+    let mut slopes: Vec<f64> = Vec::new();
+    for (a, &(i, li)) in measured.iter().enumerate() {
+        for &(j, lj) in &measured[a + 1..] {
+            slopes.push((lj - li) / (j - i) as f64);
+        }
+    }
+    slopes.sort_by(f64::total_cmp);
+    let slope = slopes[slopes.len() / 2];
+    let mut intercepts: Vec<f64> = measured
+        .iter()
+        .map(|&(i, l)| l - slope * i as f64)
+        .collect();
+    intercepts.sort_by(f64::total_cmp);
+    let intercept = intercepts[intercepts.len() / 2];
+    let resolution = 2.0 * std::f64::consts::PI / seconds;
+    let inliers: Vec<usize> = measured
+        .iter()
+        .filter(|&&(i, l)| {
+            let fit = intercept + slope * i as f64;
+            (l - fit).abs() <= (TOLERANCE * fit.abs()).max(resolution)
+        })
+        .map(|&(i, _)| i)
+        .collect();
+    let spans = match (inliers.first(), inliers.last()) {
+        (Some(a), Some(b)) => b - a >= segments / 2,
+        _ => false,
+    };
+    let first = intercept;
+    let last = intercept + slope * (segments - 1) as f64;
+    let total = (last - first).abs();
+    let low = first.min(last);
+    let drifts = low > 0.0 && total >= MIN_DRIFT * low && total >= MIN_RESOLUTIONS * resolution;
+    if debug {
+        eprintln!(
+            "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, drifts {drifts}",
+            inliers.len()
+        );
+    }
+    (inliers.len() >= needed && spans && drifts).then_some(Sweep {
+        from: first,
+        to: last,
+        seconds,
+        segments,
+    })
+}
+
+/// Whether the recording keeps oscillating where the model's free run (from the recording's
+/// first state, the longest clean stretch) has died out: its RMS about its mean over the last
+/// [`SEGMENTS`]th of the stretch more than [`OUTLASTS`] times the free run's. A model without
+/// forcing that passes over short horizons but cannot sustain what is recorded (a sweep's
+/// forced response) misses the forcing; a ringdown's model dies out with the recording.
+pub fn outlasts_model(recording: &Recording, report: &crate::identify::Report) -> Option<bool> {
+    use crate::identify::simulate::{SimModel, simulate};
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let t = &recording.t[stretch.clone()];
+    let x = &recording.x[stretch.clone()];
+    if x.len() < 64 {
+        return None;
+    }
+    let v0 = match &recording.v {
+        Some(v) => v[stretch.start],
+        None => (x[2] - x[0]) / (t[2] - t[0]),
+    };
+    let model = SimModel::from_report(report);
+    let run = simulate(&model, t, None, (x[0], v0), 2);
+    if run.diverged_at.is_some() || run.x.len() != x.len() {
+        return None;
+    }
+    let tail = x.len() - x.len() / SEGMENTS;
+    let rms = |s: &[f64]| {
+        let mean = s.iter().sum::<f64>() / s.len() as f64;
+        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    Some(rms(&x[tail..]) > OUTLASTS * rms(&run.x[tail..]))
+}
+
+/// How much more the recording must oscillate at its end than the model's free run for
+/// [`outlasts_model`].
+pub const OUTLASTS: f64 = 3.0;
+
+/// Whether x's oscillation grows over the record: its RMS about its mean over the last quarter
+/// of the longest clean stretch more than [`GROWS`] times over the first quarter. An
+/// oscillator without forcing only loses energy, so a record whose frequency drifts while it
+/// grows is driven (a ringdown's frequency drifts while it decays).
+pub fn grows(recording: &Recording) -> bool {
+    let scan = Scan::of(recording);
+    let Some(stretch) = scan.stretches().into_iter().max_by_key(|r| r.len()) else {
+        return false;
+    };
+    let x = &recording.x[stretch];
+    let quarter = x.len() / 4;
+    if quarter < 16 {
+        return false;
+    }
+    let rms = |s: &[f64]| {
+        let mean = s.iter().sum::<f64>() / s.len() as f64;
+        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    rms(&x[x.len() - quarter..]) > GROWS * rms(&x[..quarter])
+}
+
+/// How much more x must oscillate over its last quarter than its first for [`grows`].
+pub const GROWS: f64 = 1.25;

@@ -1,0 +1,333 @@
+//! Issue 25, "every failure named, every exit code right", on the command side: each test
+//! runs the `lssi` binary as a user would and holds the exit code and the sentence naming
+//! what failed.
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+fn lssi(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn arg(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A short synthetic recording (the paper's harvester, one well) written with `lssi gen`.
+fn generate(dir: &Path, name: &str, seed: u64) -> String {
+    let path = dir.join(name);
+    let seed = seed.to_string();
+    let out = lssi(&[
+        "gen",
+        "eveh",
+        "--wells",
+        "monostable",
+        "--t-end",
+        "6",
+        "--seed",
+        &seed,
+        arg(&path),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    arg(&path).to_owned()
+}
+
+#[test]
+fn a_batch_with_an_empty_folder_still_gives_the_good_files_rows_and_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", 1);
+    let b = generate(dir.path(), "b.csv", 2);
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    // A folder with files that are not recordings is as empty.
+    let other = dir.path().join("other");
+    std::fs::create_dir(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "not a recording").unwrap();
+    for (format, rows) in [("--csv", 5), ("--json", 4)] {
+        let out = lssi(&[
+            "identify",
+            &a,
+            arg(&empty),
+            &b,
+            arg(&other),
+            format,
+            "--no-refine",
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{format}: {}", stderr(&out));
+        let stdout = String::from_utf8(out.stdout.clone()).unwrap();
+        let lines: Vec<&str> = stdout.lines().collect();
+        assert_eq!(lines.len(), rows, "{format}: {stdout}");
+        let body = &lines[rows - 4..];
+        // The good files' models, in order, and each folder's row naming it.
+        assert!(
+            body[0].contains(&a) && body[0].contains("x''"),
+            "{}",
+            body[0]
+        );
+        assert!(
+            body[2].contains(&b) && body[2].contains("x''"),
+            "{}",
+            body[2]
+        );
+        for (line, folder) in [(body[1], &empty), (body[3], &other)] {
+            assert!(
+                line.contains(&format!(
+                    "{}: the folder holds no .csv recording.",
+                    folder.display()
+                )),
+                "{format}: {line}"
+            );
+            assert!(!line.contains("x''"), "{line}");
+        }
+        assert!(
+            stderr(&out).contains("2 of 4 recordings could not be identified"),
+            "{}",
+            stderr(&out)
+        );
+    }
+    // The empty folder alone: exit 2, and its sentence on stdout's row.
+    let out = lssi(&["identify", arg(&empty), "--csv"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("holds no .csv recording"));
+}
+
+#[test]
+fn a_log_without_a_record_says_so_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let magic = lssi_host::telemetry::MAGIC;
+    let mut partial = magic.to_vec();
+    partial.extend_from_slice(&[0x20, 0, 0, 0, b'a', b'b']);
+    let cases: [(&str, Vec<u8>, &str); 4] = [
+        ("empty.tlm", Vec::new(), "the file is empty"),
+        (
+            "magic.tlm",
+            magic[..4].to_vec(),
+            "holds only the first 4 of the log header's 8 bytes",
+        ),
+        ("header.tlm", magic.to_vec(), "holds only its header"),
+        ("partial.tlm", partial, "one partial record (6 bytes"),
+    ];
+    for (name, bytes, says) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        for format in [&[][..], &["--json"], &["--csv"]] {
+            let mut args = vec!["log", arg(&path)];
+            args.extend_from_slice(format);
+            let out = lssi(&args);
+            assert_eq!(out.status.code(), Some(2), "{name} {format:?}");
+            assert!(out.stdout.is_empty(), "{name}: printed something");
+            let err = stderr(&out);
+            assert!(
+                err.starts_with(&format!("lssi: {}: ", path.display())) && err.contains(says),
+                "{name}: {err}"
+            );
+            assert_eq!(err.lines().count(), 1, "{err}");
+        }
+    }
+}
+
+/// Runs `lssi ARGS` with standard output a pipe its reader closes at once (`| head` when
+/// head has had enough): `lssi` must end quietly, without a panic.
+fn closed_pipe(args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    child.wait_with_output().unwrap()
+}
+
+fn assert_quiet(args: &[&str], out: &Output) {
+    let err = stderr(out);
+    assert!(err.is_empty(), "{args:?}: {err}");
+    // Exit 0, or 1 for "the output could not be written" (crate::output); never a panic
+    // (101) or a signal.
+    assert!(
+        matches!(out.status.code(), Some(0 | 1)),
+        "{args:?}: {:?}",
+        out.status
+    );
+}
+
+#[test]
+fn a_closed_pipe_ends_log_identify_and_info_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    // A log long enough to fill a pipe many times over.
+    let log_path = dir.path().join("long.tlm");
+    let mut log = lssi_host::telemetry::TelemetryLog::open(&log_path).unwrap();
+    for i in 0..5000 {
+        log.note(&format!("note {i}: the device said something long enough"))
+            .unwrap();
+    }
+    drop(log);
+    let log = arg(&log_path);
+    let a = generate(dir.path(), "a.csv", 3);
+    for args in [
+        &["log", log][..],
+        &["log", log, "--json"],
+        &["log", log, "--csv"],
+        &["identify", "--json", &a, "--no-refine"],
+        &["identify", &a, &a, "--json"],
+        &["info", &a],
+    ] {
+        assert_quiet(args, &closed_pipe(args));
+    }
+    // And as `| head -c 10` does it: read a little, then close.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(["log", log])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 10];
+    std::io::Read::read_exact(child.stdout.as_mut().unwrap(), &mut first).unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(first.iter().any(|b| !b.is_ascii_whitespace()), "{first:?}");
+    assert_quiet(&["log", log], &out);
+}
+
+/// A recording whose x never moves: `lssi identify` withholds its model (exit 3).
+fn constant(dir: &Path, name: &str) -> String {
+    let path = dir.join(name);
+    let mut text = String::from("t,x\n");
+    for i in 0..4001 {
+        text.push_str(&format!("{},0.003\n", f64::from(i) / 1000.0));
+    }
+    std::fs::write(&path, text).unwrap();
+    arg(&path).to_owned()
+}
+
+const FIGURES: [&str; 5] = [
+    "model",
+    "screening",
+    "k-neighbours",
+    "coefficients",
+    "phase",
+];
+
+fn figures_of(out: &Path, stem: &str) -> usize {
+    FIGURES
+        .iter()
+        .flat_map(|f| ["png", "svg"].map(|ext| out.join(format!("{stem}-{f}.{ext}"))))
+        .filter(|p| std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 1000))
+        .count()
+}
+
+#[test]
+fn plot_draws_every_recording_named_or_names_each_that_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", 4);
+    let b = generate(dir.path(), "b.csv", 5);
+    let flat = constant(dir.path(), "flat.csv");
+    let missing = dir.path().join("missing.csv");
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let out = dir.path().join("figures");
+    let run = lssi(&[
+        "plot",
+        &a,
+        arg(&missing),
+        &b,
+        &flat,
+        arg(&empty),
+        "--no-refine",
+        "--out",
+        arg(&out),
+    ]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(2), "{err}");
+    // Both good recordings drawn, every figure, and their paths printed.
+    let printed = String::from_utf8_lossy(&run.stdout);
+    for stem in ["a", "b"] {
+        assert_eq!(figures_of(&out, stem), 10, "{stem}: {err}");
+        assert!(printed.contains(&format!("{stem}-model.png")), "{printed}");
+    }
+    // The withheld model not drawn at all, and said so.
+    assert_eq!(figures_of(&out, "flat"), 0);
+    assert!(err.contains(&format!("{flat}: x is constant")), "{err}");
+    assert!(err.contains("No figure of it was drawn"), "{err}");
+    assert!(err.contains(&format!("{}: cannot read the file", missing.display())));
+    assert!(err.contains(&format!("{}: the folder holds no .csv", empty.display())));
+    let last = err.lines().last().unwrap();
+    assert!(
+        last.starts_with("lssi: 3 of 5 recordings could not be plotted: ")
+            && [arg(&missing), &flat, arg(&empty)]
+                .iter()
+                .all(|f| last.contains(f)),
+        "{last}"
+    );
+
+    // Good and withheld only: exit 3, the good one still drawn.
+    let out3 = dir.path().join("three");
+    let run = lssi(&["plot", &flat, &a, "--no-refine", "--out", arg(&out3)]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert_eq!(figures_of(&out3, "a"), 10);
+    assert_eq!(figures_of(&out3, "flat"), 0);
+    // The withheld one alone: exit 3, nothing written.
+    let run = lssi(&["plot", &flat, "--out", arg(&out3)]);
+    assert_eq!(run.status.code(), Some(3));
+    assert!(run.stdout.is_empty());
+
+    // Two recordings of one name would overwrite each other's figures: refused up front.
+    let other = dir.path().join("other");
+    std::fs::create_dir(&other).unwrap();
+    std::fs::copy(&a, other.join("a.csv")).unwrap();
+    let out4 = dir.path().join("four");
+    let run = lssi(&["plot", &a, arg(&other.join("a.csv")), "--out", arg(&out4)]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        stderr(&run).contains("have the same name"),
+        "{}",
+        stderr(&run)
+    );
+    assert!(!out4.exists());
+
+    // What a withheld model gets is in the help.
+    let help = lssi(&["plot", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("withholds") && help.contains("not drawn at all"),
+        "{help}"
+    );
+}
+
+#[test]
+fn a_figure_that_cannot_be_written_is_an_error_naming_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", 6);
+    // A folder where the model figure should go (a read-only folder does not stop root).
+    let out = dir.path().join("figures");
+    std::fs::create_dir_all(out.join("a-model.png")).unwrap();
+    let run = lssi(&["plot", &a, "--no-refine", "--out", arg(&out)]);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with(&format!(
+            "lssi: {}: cannot write the file: ",
+            out.join("a-model.png").display()
+        )),
+        "{err}"
+    );
+    // The figures that could be written were.
+    assert_eq!(figures_of(&out, "a"), 8, "{err}");
+    // An output folder that cannot be made (its parent is a file).
+    let below_a_file = Path::new(&a).join("figures");
+    let run = lssi(&["plot", &a, "--no-refine", "--out", arg(&below_a_file)]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(
+        stderr(&run).contains(&format!("{}: cannot write", below_a_file.display())),
+        "{}",
+        stderr(&run)
+    );
+}

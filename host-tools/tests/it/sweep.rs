@@ -1,0 +1,154 @@
+//! A swept excitation recorded without its `u` column is named as a sweep (exit status 3,
+//! "the forcing sweeps in frequency (a chirp) …"), not fitted with cos(Ωt) nor withheld for a
+//! generic reason; steady harmonic, chaotic and ringdown recordings and the bundled data are
+//! not called sweeps. Seeds 21–23 (the detector's thresholds were set on seeds 11 and 12).
+
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use lssi_host::identify::sweep::sweep;
+use lssi_host::recording::{ColumnNames, Recording};
+
+const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
+
+fn generate(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
+    let path = dir.join(name);
+    let out = Command::new(LSSI)
+        .args(["gen", "eveh"])
+        .args(args)
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "gen {args:?}");
+    path
+}
+
+#[test]
+fn a_sweep_without_u_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [&[&str]; 4] = [
+        &[
+            "--wells",
+            "monostable",
+            "--excitation",
+            "sweep",
+            "--seed",
+            "21",
+        ],
+        &[
+            "--wells",
+            "monostable",
+            "--excitation",
+            "sweep",
+            "--omega",
+            "12",
+            "--sweep-to",
+            "32",
+            "--delta",
+            "0.03",
+            "--seed",
+            "22",
+        ],
+        &[
+            "--wells",
+            "monostable",
+            "--excitation",
+            "sweep",
+            "--omega",
+            "35",
+            "--sweep-to",
+            "18",
+            "--rate",
+            "800",
+            "--seed",
+            "23",
+        ],
+        &["--excitation", "sweep", "--seed", "22"],
+    ];
+    for (i, args) in cases.iter().enumerate() {
+        let path = generate(dir.path(), &format!("sweep{i}.csv"), args);
+        let out = Command::new(LSSI)
+            .arg("identify")
+            .arg(&path)
+            .args(["--no-refine", "--json"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("the forcing sweeps in frequency (a chirp)")
+                && stderr.contains("u column"),
+            "{args:?}: {stderr}"
+        );
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["withheld"], true);
+        assert!(json.get("terms").is_none());
+        // With its u column the same sweep is not called one.
+        let with_u = generate(
+            dir.path(),
+            &format!("sweep{i}u.csv"),
+            &[*args, &["--input"][..]].concat(),
+        );
+        let recording = Recording::read(&with_u, &ColumnNames::default()).unwrap();
+        assert!(sweep(&recording).is_none(), "{args:?} with u");
+    }
+}
+
+#[test]
+fn steady_chaotic_and_ringdown_records_are_not_sweeps() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [&[&str]; 8] = [
+        &["--wells", "monostable", "--seed", "21"],
+        &["--wells", "monostable", "--amplitude", "5", "--seed", "22"],
+        &[
+            "--wells",
+            "monostable",
+            "--omega",
+            "40",
+            "--delta",
+            "0.05",
+            "--seed",
+            "23",
+        ],
+        &["--seed", "21"],
+        &["--amplitude", "3", "--seed", "22"],
+        &["--amplitude", "8", "--omega", "15", "--seed", "23"],
+        &[
+            "--wells",
+            "monostable",
+            "--amplitude",
+            "0",
+            "--x0",
+            "0.004",
+            "--seed",
+            "21",
+        ],
+        &[
+            "--wells",
+            "monostable",
+            "--t-end",
+            "5",
+            "--rate",
+            "5000",
+            "--seed",
+            "22",
+        ],
+    ];
+    for (i, args) in cases.iter().enumerate() {
+        let path = generate(dir.path(), &format!("steady{i}.csv"), args);
+        let recording = Recording::read(&path, &ColumnNames::default()).unwrap();
+        assert_eq!(sweep(&recording), None, "{args:?}");
+    }
+    for name in [
+        "eveh-bistable",
+        "eveh-drift",
+        "eveh-monostable",
+        "paper-eq17",
+    ] {
+        let path = format!("{}/../data/{name}.csv", env!("CARGO_MANIFEST_DIR"));
+        let recording = Recording::read(&path, &ColumnNames::default()).unwrap();
+        assert_eq!(sweep(&recording), None, "{name}");
+    }
+}
