@@ -1,13 +1,13 @@
 //! Device → host messages.
 
 use crate::size::{max_of, vec_max_size};
-use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart};
+use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart, SystemSnapshot};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 /// A message from the device to the host.
 ///
-/// The variant order is the wire discriminant (0..=6); see the README before changing it.
+/// The variant order is the wire discriminant (0..=7); see the README before changing it.
 ///
 /// What the device sends when is `lssi-device`'s contract (see its crate docs): every
 /// host command gets exactly one reply, except [`HostMsg::Query`](crate::HostMsg::Query),
@@ -102,6 +102,9 @@ pub enum DeviceMsg {
     },
     /// Answers [`HostMsg::ModelPart`](crate::HostMsg::ModelPart). Since version 5.
     ModelPart(ModelPart),
+    /// A system's current model (every equation), sent where a single equation's
+    /// [`DeviceMsg::Model`] would be once a `ConfigureSystem` is in force. Since version 6.
+    SystemModel(SystemSnapshot),
 }
 
 impl MaxSize for DeviceMsg {
@@ -121,6 +124,7 @@ impl MaxSize for DeviceMsg {
             + f32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
         ModelPart::POSTCARD_MAX_SIZE,
+        SystemSnapshot::POSTCARD_MAX_SIZE,
     ]);
 }
 

@@ -19,7 +19,7 @@ use crate::batch::BatchHeader;
 use crate::compact::CompactRef;
 use crate::{
     BatchRef, CRC_LEN, DeviceMsg, Error, HostCommand, HostMsg, Message, PROTOCOL_VERSION,
-    WireConfig,
+    SystemBatch, WireConfig, WireSystemConfig,
 };
 use core::marker::PhantomData;
 use crc::{CRC_32_ISCSI, Crc};
@@ -116,6 +116,8 @@ pub fn decode_host_frame(frame: &mut [u8]) -> Result<HostCommand<'_>, Error> {
         HostShape::Compact(batch) if batch.is_well_formed() => HostCommand::Compact(batch),
         HostShape::Compact(_) => return Err(Error::Decode),
         HostShape::ModelPart { offset } => HostCommand::ModelPart { offset },
+        HostShape::ConfigureSystem(config) => HostCommand::ConfigureSystem(config),
+        HostShape::SystemSamples(batch) => HostCommand::SystemSamples(batch),
     })
 }
 
@@ -158,6 +160,8 @@ enum HostShape<'a> {
     ModelPart {
         offset: u16,
     },
+    ConfigureSystem(WireSystemConfig),
+    SystemSamples(SystemBatch),
 }
 
 /// Reassembles frames from a byte stream cut into any chunks, with an `N`-byte buffer.

@@ -49,6 +49,7 @@ mod error;
 mod frame;
 mod host;
 pub mod size;
+mod system;
 
 pub use batch::{BatchRef, BatchSamples, Channels, SampleBatch, Samples, WireSample};
 pub use compact::{
@@ -68,6 +69,10 @@ pub use frame::{
 pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireLibrary};
 /// postcard's worst-case size trait, implemented by every wire type.
 pub use postcard::experimental::max_size::MaxSize;
+pub use system::{
+    MAX_ELECTRICAL, MAX_EQUATIONS, MAX_SYSTEM_BATCH, StateTermCode, SystemBatch, SystemEquation,
+    SystemSnapshot, SystemWireSample, WireElectrical, WireSystemConfig, WireTarget,
+};
 
 /// The protocol version, sent in [`HostMsg::Hello`] and [`DeviceMsg::HelloReply`].
 ///
@@ -76,7 +81,7 @@ pub use postcard::experimental::max_size::MaxSize;
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
 /// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0

@@ -19,12 +19,12 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 5, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 6, "update the README's worked examples");
     assert_eq!(
         frame(&HostMsg::Hello {
-            protocol_version: 5
+            protocol_version: 6
         }),
-        [0x01, 0x06, 0x05, 0xCE, 0x63, 0x90, 0xC4, 0x00]
+        [0x01, 0x06, 0x06, 0x3A, 0x90, 0xC0, 0xD7, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),
