@@ -1,12 +1,13 @@
 //! What the device does with each decoded frame: configure, apply a sample batch exactly
 //! once in `seq` order, query, reset.
 
+use crate::system::Mode;
 use crate::{CostMeter, Device, Stats, Transport, wire};
 use core::cmp::Ordering;
 use lssi_core::{IdentifierSlot, Sample};
 use lssi_proto::{
     CONTROL_SEQ, Error, HostCommand, NakReason, SampleEncoding, SnapshotCause, WireConfig,
-    WireSample, decode_host_frame,
+    WireSample, WireSystemConfig, decode_host_frame,
 };
 
 impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
@@ -20,7 +21,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
     ) -> Result<(), L::Error> {
         let frame = self.buffer.get_mut(..len).unwrap_or(&mut []);
         let command = match decode_host_frame(frame) {
-            Ok(HostCommand::Samples(batch)) => {
+            Ok(HostCommand::Samples(batch)) if self.mode == Mode::Single => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 // The samples are pushed straight from the frame's bytes; the replies are
                 // sent once they are done with.
@@ -34,6 +35,21 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                     meter,
                 );
                 return self.batch_replies(outcome, link);
+            }
+            Ok(HostCommand::SystemSamples(batch)) => {
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.system_batch(&batch, link, meter);
+            }
+            Ok(HostCommand::Samples(batch)) => {
+                // One equation's samples while a system is configured.
+                let seq = batch.seq;
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.nak(link, seq, NakReason::NotConfigured);
+            }
+            Ok(HostCommand::Compact(batch)) if self.mode == Mode::System => {
+                let seq = batch.seq;
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.nak(link, seq, NakReason::NotConfigured);
             }
             Ok(HostCommand::Compact(batch)) => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
@@ -64,12 +80,19 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 Command::Hello
             }
         };
-        match command {
-            Command::Hello => self.send_hello(link),
-            Command::Configure(config) => self.configure(&config, link),
-            Command::Query => self.query(link, meter),
-            Command::Reset => self.reset(link),
-            Command::ModelPart(offset) => self.send_model_part(link, offset),
+        match (command, self.mode) {
+            (Command::Hello, _) => self.send_hello(link),
+            (Command::Configure(config), _) => self.configure(&config, link),
+            (Command::ConfigureSystem(config), _) => self.configure_system(&config, link),
+            (Command::Query, Mode::Single) => self.query(link, meter),
+            (Command::Query, Mode::System) => self.query_system(link, meter),
+            (Command::Reset, Mode::Single) => self.reset(link),
+            (Command::Reset, Mode::System) => self.reset_system(link),
+            (Command::ModelPart(offset), Mode::Single) => self.send_model_part(link, offset),
+            // The model in parts is one equation's.
+            (Command::ModelPart(_), Mode::System) => {
+                self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
+            }
         }
     }
 
@@ -113,6 +136,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         match self.identifier.configure(config) {
             Ok(_) => {
                 log!(info, "configured: {}", config);
+                self.mode = Mode::Single;
                 self.encoding = encoding;
                 self.restarted();
                 self.ack(link, CONTROL_SEQ)
@@ -243,6 +267,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 enum Command {
     Hello,
     Configure(WireConfig),
+    ConfigureSystem(WireSystemConfig),
     Query,
     Reset,
     ModelPart(u16),
@@ -254,12 +279,14 @@ impl Command {
     fn from_host(command: HostCommand<'_>) -> Self {
         match command {
             HostCommand::Configure(config) => Command::Configure(config),
+            HostCommand::ConfigureSystem(config) => Command::ConfigureSystem(config),
             HostCommand::Query => Command::Query,
             HostCommand::Reset => Command::Reset,
             HostCommand::ModelPart { offset } => Command::ModelPart(offset),
-            HostCommand::Hello { .. } | HostCommand::Samples(_) | HostCommand::Compact(_) => {
-                Command::Hello
-            }
+            HostCommand::Hello { .. }
+            | HostCommand::Samples(_)
+            | HostCommand::Compact(_)
+            | HostCommand::SystemSamples(_) => Command::Hello,
         }
     }
 }

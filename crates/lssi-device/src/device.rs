@@ -1,10 +1,11 @@
 //! The device application's state and its main loop: bytes in, frames out.
 
+use crate::system::Mode;
 use crate::{
     CostMeter, CostUnit, DEFAULT_CHANNELS, DEFAULT_TERMS, DEFAULT_WINDOW, READ_CHUNK, Stats,
     Transport,
 };
-use lssi_core::{Config, Identifier, IdentifierSlot};
+use lssi_core::{Config, Identifier, IdentifierSlot, SystemSlot};
 use lssi_proto::{
     DeviceMsg, MAX_FRAME_LEN, MAX_HOST_FRAME_LEN, MAX_LOG, MAX_TERMS, SampleEncoding, encode,
 };
@@ -34,6 +35,10 @@ pub struct Device<
     pub(crate) skipping: bool,
     /// Configured in place: the identifier never exists on the stack.
     pub(crate) identifier: IdentifierSlot<f32, W, P, C>,
+    /// A system's identifier (x'' and V', `ConfigureSystem`), configured in place too.
+    pub(crate) system: SystemSlot<f32, W, P, 2, C>,
+    /// Which of the two the commands address.
+    pub(crate) mode: Mode,
     pub(crate) next_seq: u32,
     /// How sample batches travel, as the configuration in force says.
     pub(crate) encoding: SampleEncoding,
@@ -69,6 +74,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             received: 0,
             skipping: false,
             identifier: IdentifierSlot::new(),
+            system: SystemSlot::new(),
+            mode: Mode::Single,
             next_seq: 0,
             encoding: SampleEncoding::F32,
             dirty: false,
@@ -158,14 +165,20 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         &self.stats
     }
 
-    /// The identifier, once configured.
+    /// The identifier, once configured (`None` while a system is).
     pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
-        self.identifier.get()
+        match self.mode {
+            Mode::Single => self.identifier.get(),
+            Mode::System => None,
+        }
     }
 
-    /// The configuration in force, once configured.
+    /// The configuration in force, once configured (a system's: its `base`).
     pub fn config(&self) -> Option<&Config> {
-        self.identifier.get().map(Identifier::config)
+        match self.mode {
+            Mode::Single => self.identifier.get().map(Identifier::config),
+            Mode::System => self.system.get().map(|id| &id.config().base),
+        }
     }
 
     /// The sequence number of the next sample batch to apply.
@@ -175,13 +188,21 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 
     /// The health report as it would be sent now, with costs in `unit`.
     pub fn health(&self, unit: CostUnit) -> DeviceMsg {
-        let (samples, rejected, buffer_fill, screenings) = match self.identifier.get() {
-            Some(id) => {
+        let single = self.identifier.get().filter(|_| self.mode == Mode::Single);
+        let (samples, rejected, buffer_fill, screenings) = match (single, self.system()) {
+            (Some(id), _) => {
                 let c = id.counters();
                 let fill = u16::try_from(id.buffered()).unwrap_or(u16::MAX);
                 (c.accepted, c.rejected(), fill, c.screenings)
             }
-            None => (0, 0, 0, 0),
+            (None, Some(id)) => {
+                let c = id.counters();
+                // The rings fill with every sample accepted, up to their capacity.
+                let fill = c.accepted.min(W as u64);
+                let fill = u16::try_from(fill).unwrap_or(u16::MAX);
+                (c.accepted, c.rejected(), fill, c.screenings)
+            }
+            (None, None) => (0, 0, 0, 0),
         };
         let s = &self.stats;
         DeviceMsg::Health {

@@ -118,6 +118,7 @@ mod platform;
 mod replies;
 pub mod standalone;
 mod stats;
+pub mod system;
 pub mod wire;
 
 pub use device::Device;

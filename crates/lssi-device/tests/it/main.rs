@@ -6,3 +6,4 @@ mod fuzz;
 mod loopback;
 mod sizes;
 mod standalone;
+mod system;
