@@ -158,24 +158,31 @@ pub fn system_snapshot<T: Real, const P: usize, const E: usize>(
     })
 }
 
-/// A system snapshot's equations as `(target, [(term, coefficient)])`, every term of the
-/// library in order (inactive ones with 0), the device's f32 values as they are: what the
-/// host compares and reports.
-#[allow(
-    clippy::type_complexity,
-    reason = "a plain description of the pairs the host reads"
-)]
-pub fn system_model_from_snapshot(
+/// The lssi-core model a system snapshot describes (the device's f32 values as they are),
+/// so that the host reports it with lssi-core's own code (`SystemModel::write_equation`).
+/// Each equation keeps only its selected solution (the snapshot carries no other).
+pub fn system_model_from_snapshot<const P: usize>(
     snapshot: &SystemSnapshot,
-) -> Result<
-    heapless::Vec<
-        (Target, heapless::Vec<(StateTerm, f32), MAX_TERMS>),
-        { lssi_proto::MAX_EQUATIONS },
-    >,
-    WireError,
-> {
+) -> Result<SystemModel<f32, P, { lssi_proto::MAX_EQUATIONS }>, WireError> {
     let n = snapshot.terms.len();
-    let mut equations = heapless::Vec::new();
+    let too_many = WireError::TooManyTerms {
+        terms: n,
+        capacity: P,
+    };
+    let mut model = SystemModel {
+        terms: heapless::Vec::new(),
+        electrical: [None; lssi_core::library::MAX_ELECTRICAL],
+        equations: heapless::Vec::new(),
+        omega: snapshot.omega,
+        samples: snapshot.samples,
+        rejected: snapshot.rejected,
+        rows: snapshot.rows,
+    };
+    for &code in snapshot.terms.iter() {
+        let term = state_term_from_code(code).ok_or(WireError::BadStateTerm(code))?;
+        model.terms.push(term).map_err(|_| too_many)?;
+    }
+    let mut electrical = model.electrical.iter_mut();
     for equation in snapshot.equations.iter() {
         if equation.coefficients.len() != n {
             return Err(WireError::CoefficientCount {
@@ -183,15 +190,34 @@ pub fn system_model_from_snapshot(
                 coefficients: equation.coefficients.len(),
             });
         }
-        let mut pairs = heapless::Vec::new();
-        for (&code, &c) in snapshot.terms.iter().zip(equation.coefficients.iter()) {
-            let term = state_term_from_code(code).ok_or(WireError::BadStateTerm(code))?;
-            // n ≤ MAX_TERMS: the snapshot's own capacity.
-            let _ = pairs.push((term, c));
+        let target = target_from_wire(equation.target);
+        if let Target::Rate(e) = target
+            && let Some(slot) = electrical.next()
+        {
+            *slot = Some(e);
         }
-        let _ = equations.push((target_from_wire(equation.target), pairs));
+        let mut coefficients = [0.0f32; P];
+        for (slot, &c) in coefficients.iter_mut().zip(equation.coefficients.iter()) {
+            *slot = c;
+        }
+        let mut solutions = heapless::Vec::new();
+        if let Some(s) = equation.selected {
+            let _ = solutions.push(lssi_core::Solution {
+                threshold: s.threshold,
+                mean_error: s.mean_error,
+                support: s.support,
+            });
+        }
+        let _ = model
+            .equations
+            .push(lssi_core::identifier::system::Equation {
+                target,
+                coefficients,
+                solutions,
+                selected: 0,
+            });
     }
-    Ok(equations)
+    Ok(model)
 }
 
 fn to_f32<T: Real>(value: T) -> f32 {

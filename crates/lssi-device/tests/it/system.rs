@@ -136,18 +136,23 @@ fn a_piezo_harvester_through_the_device_equals_the_system_identifier_bit_for_bit
         assert_eq!(got_scheduled, want_scheduled);
         assert_eq!(got, want);
         // Two equations, and the electrical one is the harvester's.
-        let equations = system_model_from_snapshot(&got).expect("valid");
-        assert_eq!(equations.len(), 2);
-        assert_eq!(equations[0].0, Target::Acceleration);
-        let (target, v_eq) = &equations[1];
-        assert_eq!(*target, Target::Rate(Electrical::Voltage));
+        let model = system_model_from_snapshot::<DEFAULT_TERMS>(&got).expect("valid");
+        assert_eq!(model.equations.len(), 2);
+        assert_eq!(model.equations[0].target, Target::Acceleration);
+        let voltage = Target::Rate(Electrical::Voltage);
+        assert_eq!(model.equations[1].target, voltage);
         let coef = |m: [u8; 4]| {
-            v_eq.iter()
-                .find(|(t, _)| *t == StateTerm::Monomial(m))
-                .map(|&(_, c)| f64::from(c))
-                .expect("in the library")
+            f64::from(
+                model
+                    .coefficient(voltage, StateTerm::Monomial(m))
+                    .expect("in the library"),
+            )
         };
         let (kappa, lambda) = (coef([0, 1, 0, 0]), coef([0, 0, 1, 0]));
+        // Each equation on its own line, as lssi-core writes it.
+        let mut text = String::new();
+        model.write_equation(1, 3, &mut text).expect("a String");
+        assert!(text.starts_with("V' ="), "{text}");
         assert!(
             (kappa + piezo.kappa).abs() < 0.02 * piezo.kappa,
             "κ {kappa}"
