@@ -134,6 +134,8 @@ pub fn config_to_wire(config: &Config) -> Result<WireConfig, WireError> {
         test_rows: config.test_rows,
         // The host picks the compact encoding, if it wants one, after the conversion.
         encoding: lssi_proto::SampleEncoding::F32,
+        // A duty cycle, if any, is set by the host after the conversion too.
+        duty: None,
     })
 }
 

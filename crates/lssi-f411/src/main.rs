@@ -145,11 +145,11 @@ fn main() -> ! {
         defmt::panic!("start-up ran twice")
     };
     let mut flash = LockedFlash::new(dp.FLASH);
-    let mut config = match store::load(&flash) {
+    let (mut config, duty) = match store::load(&flash) {
         Ok(stored) => stored,
         Err(why) => {
             defmt::info!("no stored configuration ({}): the image's", why);
-            default_config()
+            (default_config(), None)
         }
     };
     let configured = match decimator_for(&config) {
@@ -167,6 +167,7 @@ fn main() -> ! {
             Err(())
         }
     };
+    let configured_from_store = configured.is_ok();
     let decimator = match configured {
         Ok(d) => d,
         Err(()) => {
@@ -235,6 +236,9 @@ fn main() -> ! {
         CIC_ORDER,
         decimator.time_offset(f64::from(RATE_HZ)),
     );
+    // The stored duty cycle, if any (a stored configuration refused above leaves the
+    // image's, which has none).
+    reporter.set_duty(if configured_from_store { duty } else { None }, &SHARED);
     let mut link = Link { tx: tx_in };
 
     #[allow(unsafe_code)]
@@ -321,6 +325,17 @@ fn TIM2() {
     let row = critical_section::with(|cs| {
         if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
             let _ = sensor.timer.wait();
+            // Between the windows of a duty cycle no conversion is made: the sampler only
+            // counts the time. (A board for the field would stop TIM2 and the ADC and wake
+            // by the RTC instead: the F4 keeps its timer and ADC only out of Stop.)
+            if !sensor.sampler.sampling() {
+                let idle = Reading {
+                    x: f32::NAN,
+                    v: None,
+                    u: None,
+                };
+                return sensor.sampler.convert(stamp, idle, &SHARED);
+            }
             let code = sensor.adc.convert(&sensor.pin, SampleTime::Cycles_56);
             // A reading at either rail is saturated: passed on as NaN, which the identifier
             // counts as rejected and skips like a gap (sampling goes on).

@@ -13,7 +13,7 @@
 
 use lssi_core::Config;
 use lssi_device::wire;
-use lssi_proto::{HostMsg, MAX_HOST_FRAME_LEN, WireConfig, decode_frame, encode};
+use lssi_proto::{HostMsg, MAX_HOST_FRAME_LEN, WireConfig, WireDuty, decode_frame, encode};
 use stm32f4xx_hal::flash::{Error, FlashExt, LockedFlash};
 
 /// The sector and its offset from the start of flash.
@@ -32,8 +32,8 @@ pub enum Unused {
     Undecodable,
 }
 
-/// The stored configuration, if there is one that decodes.
-pub fn load(flash: &LockedFlash) -> Result<Config, Unused> {
+/// The stored configuration and its duty cycle, if there is one that decodes.
+pub fn load(flash: &LockedFlash) -> Result<(Config, Option<WireDuty>), Unused> {
     let bytes = flash.read();
     let Some(record) = bytes.get(OFFSET..OFFSET + HEADER + MAX_HOST_FRAME_LEN) else {
         return Err(Unused::Empty);
@@ -48,7 +48,7 @@ pub fn load(flash: &LockedFlash) -> Result<Config, Unused> {
     let mut frame = [0u8; MAX_HOST_FRAME_LEN];
     frame[..len].copy_from_slice(&record[HEADER..HEADER + len]);
     match decode_frame::<HostMsg>(&mut frame[..len]) {
-        Ok(HostMsg::Configure(c)) => Ok(wire::config_from_wire(&c)),
+        Ok(HostMsg::Configure(c)) => Ok((wire::config_from_wire(&c), c.duty)),
         _ => Err(Unused::Undecodable),
     }
 }

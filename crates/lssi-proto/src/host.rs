@@ -119,7 +119,7 @@ pub enum PolyFamily {
 /// the identifier, and naks [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it
 /// cannot. Field changes bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION); the nested
 /// structs are no framing (postcard writes a struct as its fields in order), so the bytes
-/// are those of the flat record of version 5.
+/// are those of the flat record of version 5 followed by `duty` (version 6).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct WireConfig {
@@ -157,6 +157,22 @@ pub struct WireConfig {
     pub test_rows: u16,
     /// How the sample batches travel. Since version 5.
     pub encoding: SampleEncoding,
+    /// A standalone device's duty cycle: identify for a window, report, sleep for an
+    /// interval, wake and go on from the kept model; `None`: identify continuously. A
+    /// device that samples no sensor of its own (the host sends the samples) ignores it.
+    /// Since version 6.
+    pub duty: Option<WireDuty>,
+}
+
+/// A standalone device's duty cycle (see [`WireConfig::duty`]). Since version 6.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireDuty {
+    /// Seconds of sampling and identification a window (rounded by the device to whole
+    /// rows).
+    pub window: f32,
+    /// Seconds asleep between two windows (rounded to whole rows).
+    pub interval: f32,
 }
 
 /// The candidate terms: `lssi_core::LibraryConfig`, field for field.

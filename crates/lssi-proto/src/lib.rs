@@ -66,7 +66,7 @@ pub use frame::write_frame;
 pub use frame::{
     FrameDecoder, Frames, decode_frame, decode_host_frame, encode, encode_device, encode_host,
 };
-pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireLibrary};
+pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireDuty, WireLibrary};
 /// postcard's worst-case size trait, implemented by every wire type.
 pub use postcard::experimental::max_size::MaxSize;
 pub use system::{

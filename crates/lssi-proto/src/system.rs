@@ -294,6 +294,7 @@ mod tests {
             max_abs: 1e6,
             test_rows: 0,
             encoding: crate::SampleEncoding::F32,
+            duty: None,
         };
         let config = WireSystemConfig {
             base,

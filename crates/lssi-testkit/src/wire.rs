@@ -152,6 +152,7 @@ fn assemble(
         max_abs,
         test_rows,
         encoding: SampleEncoding::F32,
+        duty: None,
     }
 }
 

@@ -216,10 +216,10 @@ fn standalone_device_decimates_10_khz_to_200_hz_rows_and_ends_with_the_identifie
         .arg(format!("loader,file={},addr=0x21000000", image.display()))
         .arg("-serial")
         .arg(format!("file:{}", uart.display()))
-        .stdout(std::process::Stdio::null())
-        .status()
+        .output()
         .expect("QEMU runs");
-    assert_eq!(status.code(), Some(0), "the firmware's exit status");
+    assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
+    print_log(&elf, &status.stdout, dir.path());
     let frames = std::fs::read(&uart).expect("the UART's bytes");
     let mut decoder = DeviceFrameDecoder::new();
     let messages: Vec<DeviceMsg> = decoder
@@ -280,4 +280,222 @@ fn standalone_device_decimates_10_khz_to_200_hz_rows_and_ends_with_the_identifie
             "{kind:?} {a} {b} missing: {active:?}"
         );
     }
+}
+
+/// Runs the standalone image on `recording` converted at `adc_hz`, its stored
+/// configuration `config` (a host's `Configure` frame); returns every frame it sent.
+fn run_standalone(
+    recording: &Recording,
+    adc_hz: f64,
+    config: &lssi_proto::WireConfig,
+    dir: &Path,
+) -> Vec<lssi_proto::DeviceMsg> {
+    use lssi_proto::{DeviceFrameDecoder, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, encode};
+    let elf = standalone_elf();
+    assert!(elf.is_file(), "{}: build the firmware first", elf.display());
+    let mut bytes = lssi_host::serial::monitor::recording_image(recording, adc_hz, None)
+        .expect("the PSRAM image");
+    let mut frame = [0u8; MAX_HOST_FRAME_LEN];
+    let len = encode(&HostMsg::Configure(*config), &mut frame).expect("encodes");
+    // The header's stored configuration: its length at 24, the frame at 28.
+    bytes[24..28].copy_from_slice(&(len as u32).to_le_bytes());
+    bytes[28..28 + len].copy_from_slice(&frame[..len]);
+    let image = dir.join("recording.bin");
+    std::fs::write(&image, bytes).expect("write the image");
+    let uart = dir.join("uart.bin");
+    let qemu = lssi_host::serial::qemu::find().expect("qemu-system-arm on the PATH");
+    let status = lssi_host::serial::qemu::command(&qemu)
+        .args(["-icount", "shift=4,sleep=off", "-kernel"])
+        .arg(&elf)
+        .arg("-device")
+        .arg(format!("loader,file={},addr=0x21000000", image.display()))
+        .arg("-serial")
+        .arg(format!("file:{}", uart.display()))
+        .output()
+        .expect("QEMU runs");
+    assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
+    print_log(&elf, &status.stdout, dir);
+    let frames = std::fs::read(&uart).expect("the UART's bytes");
+    let mut decoder = DeviceFrameDecoder::new();
+    decoder
+        .feed::<DeviceMsg>(&frames)
+        .map(|m| m.expect("a valid frame"))
+        .collect()
+}
+
+/// Prints the firmware's defmt log (its semihosting output), decoded by `defmt-print` when
+/// that is installed (scripts/ci-qemu.sh installs it); nothing otherwise.
+fn print_log(elf: &Path, defmt: &[u8], dir: &Path) {
+    let raw = dir.join("defmt.bin");
+    std::fs::write(&raw, defmt).expect("write the log");
+    let Ok(file) = std::fs::File::open(&raw) else {
+        return;
+    };
+    if let Ok(out) = std::process::Command::new("defmt-print")
+        .arg("-e")
+        .arg(elf)
+        .stdin(file)
+        .output()
+    {
+        println!("{}", String::from_utf8_lossy(&out.stdout));
+    }
+}
+
+/// The duty-cycled device under QEMU: 10 kHz conversions decimated to 200 Hz rows, windows
+/// of 4 s every 10 s over a 30 s recording. It reports a Model and a Health at the end of
+/// each window and nothing in between; it goes on from the kept model (the rows add up
+/// over the windows), and its final model is lssi-core's f32 identifier's on the same
+/// windows' rows (the host runs lssi-device's own sampler on the recording to make them).
+#[test]
+#[ignore = "needs qemu-system-arm and the standalone firmware ELF: bash scripts/ci-qemu.sh runs it"]
+fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
+    use lssi_core::{Identifier, Sample};
+    use lssi_device::decimate::{Decimator, factor_for};
+    use lssi_device::standalone::{Event, EventQueue, Reading, Sampler, Schedule, Shared};
+    use lssi_proto::{DeviceMsg, SnapshotCause, WireDuty};
+
+    const ADC_HZ: f64 = 10_000.0;
+    const ORDER: u8 = 3;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("eveh-10k.csv");
+    let gen_args = Gen::try_parse_from([
+        "gen".as_ref(),
+        "eveh".as_ref(),
+        csv.as_os_str(),
+        "--rate".as_ref(),
+        "10000".as_ref(),
+        "--t-end".as_ref(),
+        "30".as_ref(),
+        "--observe".as_ref(),
+        "x".as_ref(),
+    ] as [&std::ffi::OsStr; 9])
+    .expect("gen arguments")
+    .args;
+    generate::run(&gen_args).expect("lssi gen eveh");
+    let recording = Recording::read(&csv, &ColumnNames::default()).expect("the recording");
+
+    // The configuration lssi identify chooses for 200 Hz rows of this harvester (made from
+    // the whole recording decimated, as a host would from an earlier recording).
+    let factor = factor_for(ADC_HZ, 1.0 / 200.0).expect("a whole factor");
+    let mut decimator = Decimator::new(factor, ORDER).expect("a decimator");
+    let period = f64::from(factor) / ADC_HZ;
+    let offset = decimator.time_offset(ADC_HZ);
+    let all: Vec<f32> = recording
+        .samples()
+        .filter_map(|s| decimator.push([s.x as f32, 0.0, 0.0]).map(|r| r[0]))
+        .collect();
+    let times: Vec<f64> = (0..all.len()).map(|i| i as f64 * period + offset).collect();
+    let xs: Vec<f64> = all.iter().map(|&x| f64::from(x)).collect();
+    let decimated = dir.path().join("eveh-200.csv");
+    lssi_host::recording::write_csv(&decimated, &["t", "x"], &[&times, &xs]).expect("CSV");
+    let decimated = Recording::read(&decimated, &ColumnNames::default()).expect("rows");
+    let (mut config, _) = lssi_host::identify::configure(&decimated, &Options::default())
+        .expect("lssi identify's configuration for the rows");
+    config.sample_period = period;
+    let duty = WireDuty {
+        window: 4.0,
+        interval: 6.0,
+    };
+    let mut wire = lssi_device::wire::config_to_wire(&config).expect("encodable");
+    wire.duty = Some(duty);
+
+    // The rows the device makes in its windows, by lssi-device's sampler itself.
+    let shared: Box<Shared<16>> = Box::new(Shared::new());
+    let mut queue: EventQueue = EventQueue::new();
+    let (producer, mut consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    sampler.set_decimator(Decimator::new(factor, ORDER).expect("a decimator"));
+    let schedule = Schedule::duty(duty.window, duty.interval, ADC_HZ, factor);
+    assert_eq!(schedule.window, 40_000);
+    sampler.set_schedule(schedule);
+    let mut identifier: Box<Identifier<f32, 256, 16, 2>> =
+        Box::new(Identifier::new(config).expect("a valid configuration"));
+    let (mut rows, mut pauses) = (0u64, 0u32);
+    for (i, s) in recording.samples().enumerate() {
+        let reading = Reading {
+            x: s.x as f32,
+            v: None,
+            u: None,
+        };
+        sampler.tick(i as u32, reading, &shared.counters);
+        while let Some(event) = consumer.dequeue() {
+            match event {
+                Event::Sample { index, reading, .. } => {
+                    rows += 1;
+                    let _ = identifier.push(Sample {
+                        t: index as f64 * period + offset,
+                        x: reading.x,
+                        v: None,
+                        u: None,
+                    });
+                }
+                Event::Pause => pauses += 1,
+                Event::End => {}
+            }
+        }
+    }
+    assert_eq!(pauses, 3);
+    assert!(identifier.screen(), "a model from {rows} rows");
+    let expected =
+        lssi_device::wire::snapshot(identifier.model().expect("a model"), SnapshotCause::Final)
+            .expect("fits a snapshot");
+
+    let messages = run_standalone(&recording, ADC_HZ, &wire, dir.path());
+    // A Model then a Health at the end of each of the 3 windows, then the final pair.
+    let kinds: Vec<&str> = messages
+        .iter()
+        .map(|m| match m {
+            DeviceMsg::Model(s) if s.cause == SnapshotCause::Final => "final",
+            DeviceMsg::Model(_) => "model",
+            DeviceMsg::Health { .. } => "health",
+            _ => "other",
+        })
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            "model", "health", "model", "health", "model", "health", "final", "health"
+        ],
+        "{messages:?}"
+    );
+    let samples: Vec<u64> = messages
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health {
+                samples, overruns, ..
+            } => {
+                assert_eq!(*overruns, 0);
+                Some(*samples)
+            }
+            _ => None,
+        })
+        .collect();
+    // Each window adds its rows (4 s at 200 Hz, less the CIC's two warm-up blocks) to the
+    // kept model; the last report is after the third window (the recording ends asleep).
+    let per_window = 800 - u64::from(ORDER - 1);
+    assert_eq!(
+        samples,
+        [per_window, 2 * per_window, 3 * per_window, 3 * per_window]
+    );
+    assert_eq!(rows, 3 * per_window);
+    let Some(DeviceMsg::Model(got)) = messages
+        .iter()
+        .rev()
+        .find(|m| matches!(m, DeviceMsg::Model(s) if s.cause == SnapshotCause::Final))
+    else {
+        panic!("no final model");
+    };
+    assert_eq!(got.terms, expected.terms);
+    for (i, (g, w)) in got
+        .coefficients
+        .iter()
+        .zip(&expected.coefficients)
+        .enumerate()
+    {
+        assert!(
+            (g - w).abs() <= 1e-5 * w.abs(),
+            "term {i}: {g} on the device, {w} on the host"
+        );
+    }
+    println!("windowed device's final model: {:?}", got.coefficients);
 }

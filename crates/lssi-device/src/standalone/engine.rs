@@ -22,6 +22,8 @@ pub struct Engine<const W: usize, const P: usize, const C: usize> {
     fresh: bool,
     /// The recording ended; its final snapshot is still to be taken.
     final_pending: bool,
+    /// A duty cycle's window ended; its snapshot is still to be taken.
+    window_pending: bool,
     ended: bool,
     /// Clock ticks of the pushes since configured: sum, count, largest.
     cost_sum: u64,
@@ -44,6 +46,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             offset: 0.0,
             fresh: false,
             final_pending: false,
+            window_pending: false,
             ended: false,
             cost_sum: 0,
             cost_count: 0,
@@ -73,6 +76,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         self.offset = offset;
         self.fresh = true;
         self.final_pending = false;
+        self.window_pending = false;
         self.ended = false;
         self.cost_sum = 0;
         self.cost_count = 0;
@@ -122,9 +126,15 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     self.ended = true;
                     self.final_pending = self.slot.get().is_some();
                 }
+                Event::Pause => {
+                    self.window_pending = self.slot.get().is_some();
+                }
             }
         }
-        if self.final_pending && self.hand_over(shared, SnapshotCause::Final) {
+        if self.window_pending && self.hand_over(shared, SnapshotCause::Scheduled, true) {
+            self.window_pending = false;
+        }
+        if self.final_pending && self.hand_over(shared, SnapshotCause::Final, false) {
             self.final_pending = false;
         }
         self.publish(shared);
@@ -144,7 +154,12 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             u: reading.u,
         };
         // A rejected sample (NaN, saturated, wrong channels) is counted by the identifier.
+        // Sampling in windows, the model is screened once a window (at its end) instead.
+        let windowed = shared.windowed.load(Ordering::Relaxed);
         let _ = id.push_with(sample, |id| {
+            if windowed {
+                return false;
+            }
             match shared.take_free() {
                 Some(snapshot) => {
                     if core::mem::replace(fresh, false) {
@@ -152,10 +167,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     }
                     id.snapshot_into(snapshot);
                     critical_section::with(|cs| {
-                        shared
-                            .full
-                            .borrow(cs)
-                            .set(Some((snapshot, SnapshotCause::Scheduled)))
+                        shared.full.borrow(cs).set(Some((
+                            snapshot,
+                            SnapshotCause::Scheduled,
+                            false,
+                        )))
                     });
                 }
                 None => {
@@ -169,8 +185,8 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         });
     }
 
-    /// Takes the final snapshot if the snapshot is free.
-    fn hand_over(&mut self, shared: &Shared<P>, cause: SnapshotCause) -> bool {
+    /// Takes the final (or a window's) snapshot if the snapshot is free.
+    fn hand_over(&mut self, shared: &Shared<P>, cause: SnapshotCause, window: bool) -> bool {
         let Some(id) = self.slot.get() else {
             return true;
         };
@@ -181,7 +197,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause))));
+        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause, window))));
         true
     }
 

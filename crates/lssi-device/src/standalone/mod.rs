@@ -32,6 +32,6 @@ use crate::Transport;
 pub use engine::{Engine, IdentifyTask};
 #[cfg(doc)]
 use lssi_core::Snapshot;
-pub use reporter::Reporter;
-pub use sampler::{STUCK_RUN, Sampler};
+pub use reporter::{Drift, Reporter};
+pub use sampler::{STUCK_RUN, Sampler, Schedule};
 pub use shared::{Clock, Counters, Event, EventQueue, QUEUE_SLOTS, Reading, Shared, Status};

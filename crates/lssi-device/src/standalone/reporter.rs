@@ -1,6 +1,6 @@
 //! Thread mode's part: the screening, the reports and the host's commands.
 
-use super::{Clock, Shared};
+use super::{Clock, Schedule, Shared};
 use crate::decimate::{Decimator, factor_for};
 use crate::{Transport, wire};
 use core::sync::atomic::Ordering;
@@ -8,8 +8,67 @@ use heapless::spsc::Consumer;
 use lssi_core::Config;
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
-    ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, encode,
+    MAX_TERMS, ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, WireDuty,
+    encode,
 };
+
+/// How the model moved from one duty-cycle window to the next: what a harvester that
+/// changes over weeks shows first.
+///
+/// Per term, the relative change `|c − p| / |p|` of its coefficient from the previous
+/// window's model `p` to this one's `c` (1 for a term that entered or left the model).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Drift {
+    /// Windows reported since configured (this one included).
+    pub windows: u32,
+    /// Root mean square of the terms' relative changes, over the terms in either model
+    /// (0 for the first window, which has nothing to compare with).
+    pub relative: f32,
+    /// The largest relative change and the term (index in the library) that made it.
+    pub largest: f32,
+    /// That term's index in the model's terms.
+    pub largest_term: u8,
+    /// Terms that entered or left the model.
+    pub support_changes: u8,
+}
+
+impl Drift {
+    /// The drift from `previous` to `current` (the same library: the same terms in the
+    /// same order; otherwise every term counts as changed).
+    pub fn between(previous: &ModelSnapshot, current: &ModelSnapshot, windows: u32) -> Self {
+        let mut drift = Drift {
+            windows,
+            ..Drift::default()
+        };
+        let same = previous.terms == current.terms;
+        let (mut sum, mut n) = (0.0f32, 0u32);
+        for (i, &c) in current.coefficients.iter().enumerate() {
+            let p = if same {
+                previous.coefficients.get(i).copied().unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            let change = match (p != 0.0, c != 0.0) {
+                (false, false) => continue,
+                (true, true) => libm::fabsf(c - p) / libm::fabsf(p),
+                _ => {
+                    drift.support_changes = drift.support_changes.saturating_add(1);
+                    1.0
+                }
+            };
+            sum += change * change;
+            n += 1;
+            if change > drift.largest {
+                drift.largest = change;
+                drift.largest_term = u8::try_from(i).unwrap_or(u8::MAX);
+            }
+        }
+        if n > 0 {
+            drift.relative = libm::sqrtf(sum / n as f32);
+        }
+        drift
+    }
+}
 
 /// Thread mode's part: screens the snapshot, keeps the latest model, sends Model and
 /// Health frames every period and answers the host's commands.
@@ -39,6 +98,16 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize> {
     finished: bool,
     /// A host's configuration, accepted and not yet taken by the board to keep.
     to_keep: Option<WireConfig>,
+    /// The duty cycle (windows and intervals, seconds), if any: reports only at the end of
+    /// a window, then.
+    duty: Option<WireDuty>,
+    /// The previous window's model and how the last one moved from it.
+    previous: Option<(
+        heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
+        heapless::Vec<f32, MAX_TERMS>,
+    )>,
+    drift: Option<Drift>,
+    windows: u32,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
@@ -65,7 +134,52 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             frames_sent: 0,
             finished: false,
             to_keep: None,
+            duty: None,
+            previous: None,
+            drift: None,
+            windows: 0,
         }
+    }
+
+    /// Samples in windows of `duty` (the board's start-up configuration; a host's
+    /// `Configure` sets it too): the sampling interrupt's schedule in conversions of the
+    /// ADC set by [`Reporter::set_adc`] (call that first) or, without one, of rows at the
+    /// configuration's rate. Reports (Model, then Health) go out at the end of each window
+    /// only.
+    pub fn set_duty(&mut self, duty: Option<WireDuty>, shared: &Shared<P>) {
+        self.duty = duty;
+        let schedule = match (duty, self.config) {
+            (Some(d), Some(config)) => {
+                let (adc_hz, factor) = if self.adc_hz > 0.0 {
+                    (
+                        self.adc_hz,
+                        factor_for(self.adc_hz, config.sample_period).unwrap_or(1),
+                    )
+                } else {
+                    (1.0 / config.sample_period, 1)
+                };
+                Schedule::duty(d.window, d.interval, adc_hz, factor)
+            }
+            _ => Schedule::ALWAYS,
+        };
+        if !schedule.is_duty() {
+            self.duty = None;
+        }
+        self.previous = None;
+        self.drift = None;
+        self.windows = 0;
+        shared.request_schedule(schedule);
+    }
+
+    /// The most clock ticks one screening took.
+    pub fn screen_cost_max(&self) -> u32 {
+        self.screen_cost_max
+    }
+
+    /// How the model moved between the last two windows of the duty cycle (after each
+    /// window's report; `None` before the first or without a duty cycle).
+    pub fn drift(&self) -> Option<Drift> {
+        self.drift
     }
 
     /// Rows are decimated from an ADC converting at `adc_hz` by a CIC of `order`
@@ -135,7 +249,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         screened: impl FnOnce(),
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
-        if let Some((snapshot, cause)) = shared.take_full() {
+        if let Some((snapshot, cause, window)) = shared.take_full() {
             let start = clock.now();
             let made = snapshot.select();
             let spent = clock.now().wrapping_sub(start);
@@ -152,14 +266,57 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                 self.finished = true;
                 return Ok(());
             }
+            if window {
+                self.end_window();
+                self.last_report = clock.now();
+                self.send_model(link)?;
+                self.send_health::<L, K>(shared, link)?;
+                return Ok(());
+            }
         }
         let now = clock.now();
-        if self.period_ticks > 0 && now.wrapping_sub(self.last_report) >= self.period_ticks {
+        if self.duty.is_none()
+            && self.period_ticks > 0
+            && now.wrapping_sub(self.last_report) >= self.period_ticks
+        {
             self.last_report = now;
             self.send_model(link)?;
             self.send_health::<L, K>(shared, link)?;
         }
         Ok(())
+    }
+
+    /// A window's model is in: how it moved from the previous window's.
+    fn end_window(&mut self) {
+        self.windows = self.windows.saturating_add(1);
+        let Some(latest) = self.latest.as_ref() else {
+            return;
+        };
+        let drift = match &self.previous {
+            Some((terms, coefficients)) => {
+                let previous = ModelSnapshot {
+                    terms: terms.clone(),
+                    coefficients: coefficients.clone(),
+                    ..ModelSnapshot::default()
+                };
+                Drift::between(&previous, latest, self.windows)
+            }
+            None => Drift {
+                windows: self.windows,
+                ..Drift::default()
+            },
+        };
+        log!(
+            info,
+            "window {=u32}: coefficients moved {=f32} (RMS relative), at most {=f32} (term {=u8}), {=u8} terms in or out",
+            drift.windows,
+            drift.relative,
+            drift.largest,
+            drift.largest_term,
+            drift.support_changes
+        );
+        self.drift = Some(drift);
+        self.previous = Some((latest.terms.clone(), latest.coefficients.clone()));
     }
 
     /// Handles bytes received from the host: `Hello`, `Configure` (checked here, applied
@@ -258,6 +415,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                 }
                 shared.request_config_at(config, self.offset);
                 self.config = Some(config);
+                self.set_duty(wire_config.duty, shared);
                 self.to_keep = Some(wire_config);
                 self.rate_hz = (1.0 / config.sample_period) as f32;
                 self.latest = None;

@@ -3,9 +3,10 @@
 
 #[cfg(doc)]
 use super::STUCK_RUN;
+use super::Schedule;
 use crate::decimate::Decimator;
 use core::cell::Cell;
-use core::sync::atomic::AtomicU32;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use critical_section::Mutex;
 use heapless::spsc::Queue;
 use lssi_core::{Config, Snapshot};
@@ -42,6 +43,9 @@ pub enum Event {
     },
     /// The sensor has no more samples (the QEMU stand-in's recording ended).
     End,
+    /// A duty cycle's window ended: the model of every row so far is screened and reported,
+    /// then the sampler sleeps for the interval.
+    Pause,
 }
 
 /// A free-running tick counter (wrapping), for latencies.
@@ -84,12 +88,18 @@ pub struct Shared<const P: usize> {
     pub(super) pending: Mutex<Cell<Option<(Config, f64)>>>,
     /// A decimator for the sampling interrupt to put in before its next conversion.
     pub(super) decimator: Mutex<Cell<Option<Decimator>>>,
+    /// A duty cycle for the sampling interrupt to follow from its next conversion.
+    pub(super) schedule: Mutex<Cell<Option<Schedule>>>,
+    /// Sampling in windows: the identify task leaves the scheduled screenings out (the
+    /// model is screened and reported once a window, at its end).
+    pub(super) windowed: AtomicBool,
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     pub(super) status: Mutex<Cell<Status>>,
 }
 
-/// A snapshot taken for a screening, with why it was taken.
-pub(super) type Taken<const P: usize> = (&'static mut Snapshot<f32, P>, SnapshotCause);
+/// A snapshot taken for a screening, with why it was taken and whether it ends a duty
+/// cycle's window.
+pub(super) type Taken<const P: usize> = (&'static mut Snapshot<f32, P>, SnapshotCause, bool);
 
 /// The identifier's figures as the identify task last published them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -129,6 +139,8 @@ impl<const P: usize> Shared<P> {
             full: Mutex::new(Cell::new(None)),
             pending: Mutex::new(Cell::new(None)),
             decimator: Mutex::new(Cell::new(None)),
+            schedule: Mutex::new(Cell::new(None)),
+            windowed: AtomicBool::new(false),
             status: Mutex::new(Cell::new(Status {
                 samples: 0,
                 rejected: 0,
@@ -161,6 +173,17 @@ impl<const P: usize> Shared<P> {
     /// Asks the sampling interrupt to decimate by `decimator` from its next conversion.
     pub fn request_decimator(&self, decimator: Decimator) {
         critical_section::with(|cs| self.decimator.borrow(cs).set(Some(decimator)));
+    }
+
+    /// Asks the sampling interrupt to follow `schedule` from its next conversion (and the
+    /// identify task to screen once a window instead of on its own schedule).
+    pub fn request_schedule(&self, schedule: Schedule) {
+        self.windowed.store(schedule.is_duty(), Ordering::Relaxed);
+        critical_section::with(|cs| self.schedule.borrow(cs).set(Some(schedule)));
+    }
+
+    pub(super) fn take_schedule(&self) -> Option<Schedule> {
+        critical_section::with(|cs| self.schedule.borrow(cs).take())
     }
 
     pub(super) fn take_decimator(&self) -> Option<Decimator> {

@@ -368,3 +368,141 @@ fn a_configure_sets_the_decimation_by_its_row_period() {
         }
     }
 }
+
+/// The duty cycle: the device identifies for a window, reports Model then Health, sleeps
+/// for the interval (no row pushed), wakes and goes on from the kept model; each window's
+/// report says how the coefficients moved from the previous one.
+///
+/// Returns per window: (rows the model has seen, the drift), and the frames.
+fn windows(
+    n: u32,
+    window_s: f32,
+    interval_s: f32,
+    reading: impl Fn(u32) -> f32,
+) -> (Vec<(u64, lssi_device::standalone::Drift)>, Vec<DeviceMsg>) {
+    let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
+    shared.give_snapshot(Box::leak(Box::new(Snapshot::empty())));
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let engine: &'static mut Engine<W, P, C> = Box::leak(Box::new(Engine::new()));
+    let config = Config {
+        memory: Some(20.0),
+        screening_period: 400,
+        ..config()
+    };
+    engine.configure(config).expect("valid");
+    let identify: &'static IdentifyTask<W, P, C> = Box::leak(Box::new(IdentifyTask::new()));
+    identify.give(engine, consumer);
+    let mut reporter: Reporter<W, P, C> = Reporter::new(config, 100.0, 1_000);
+    reporter.set_duty(
+        Some(lssi_proto::WireDuty {
+            window: window_s,
+            interval: interval_s,
+        }),
+        shared,
+    );
+    let clock = FakeClock(Cell::new(0));
+    let mut wire = Wire::default();
+    let mut out = Vec::new();
+    for i in 0..n {
+        clock.0.set(clock.0.get() + 10_000);
+        let reading = Reading {
+            x: reading(i),
+            v: None,
+            u: None,
+        };
+        if sampler.convert(clock.now(), reading, shared) {
+            identify.run(shared, &clock);
+            // Thread mode screens right away (a window's end) and reports.
+            let before = reporter.drift();
+            let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+            identify.run(shared, &clock);
+            if reporter.drift() != before
+                && let Some(drift) = reporter.drift()
+            {
+                out.push((shared.status().samples, drift));
+            }
+        }
+    }
+    (out, decode(&wire.0))
+}
+
+/// A forced Duffing oscillator, x'' = −k x − 0.1 v − 0.5 x³ + 2 cos t (the library's
+/// terms at Ω = 1), sampled at 100 Hz (RK4, 4 steps a sample); `k` from `stiffness(i)`.
+fn duffing(n: u32, stiffness: impl Fn(u32) -> f64) -> Vec<f32> {
+    let (mut x, mut v) = (1.0f64, 0.0f64);
+    let h = 0.01 / 4.0;
+    let f = |t: f64, x: f64, v: f64, k: f64| -k * x - 0.1 * v - 0.5 * x * x * x + 2.0 * t.cos();
+    let mut out = Vec::with_capacity(n as usize);
+    for i in 0..n {
+        out.push(x as f32);
+        let k = stiffness(i);
+        for j in 0..4 {
+            let t = f64::from(i) * 0.01 + f64::from(j) * h;
+            let (k1x, k1v) = (v, f(t, x, v, k));
+            let (k2x, k2v) = (
+                v + 0.5 * h * k1v,
+                f(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v, k),
+            );
+            let (k3x, k3v) = (
+                v + 0.5 * h * k2v,
+                f(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v, k),
+            );
+            let (k4x, k4v) = (v + h * k3v, f(t + h, x + h * k3x, v + h * k3v, k));
+            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        }
+    }
+    out
+}
+
+#[test]
+fn duty_cycled_windows_report_once_each_and_go_on_from_the_kept_model() {
+    // 100 rows a second: windows of 10 s (1000 rows) every 30 s, 9 windows in 270 s.
+    let x = duffing(27_000, |_| 4.0);
+    let (reports, frames) = windows(27_000, 10.0, 20.0, |i| x[i as usize]);
+    assert_eq!(reports.len(), 9, "{reports:?}");
+    for (k, (samples, drift)) in reports.iter().enumerate() {
+        // Only the windows' rows went in, and the model kept them all.
+        assert_eq!(*samples, 1000 * (k as u64 + 1), "window {k}");
+        assert_eq!(drift.windows, k as u32 + 1);
+    }
+    // Nothing but the windows' reports went out: a Model and a Health each.
+    let models = frames
+        .iter()
+        .filter(|m| matches!(m, DeviceMsg::Model(_)))
+        .count();
+    let healths = frames
+        .iter()
+        .filter(|m| matches!(m, DeviceMsg::Health { .. }))
+        .count();
+    assert_eq!((models, healths), (9, 9));
+    // The first window has nothing to compare with.
+    assert_eq!(reports[0].1.relative, 0.0);
+}
+
+#[test]
+fn a_changed_harvester_shows_as_drift_between_windows() {
+    // The same oscillator, then from 120 s on (window 5 of 9) 25 % stiffer: the windows
+    // after the change move more than any window of the unchanged run after its first two.
+    let steady_x = duffing(27_000, |_| 4.0);
+    let moved_x = duffing(27_000, |i| if i < 12_000 { 4.0 } else { 5.0 });
+    let (steady, _) = windows(27_000, 10.0, 20.0, |i| steady_x[i as usize]);
+    let (moved, _) = windows(27_000, 10.0, 20.0, |i| moved_x[i as usize]);
+    assert_eq!((steady.len(), moved.len()), (9, 9));
+    println!(
+        "drift, unchanged: {:?}; changed: {:?}",
+        steady.iter().map(|(_, d)| d.relative).collect::<Vec<_>>(),
+        moved.iter().map(|(_, d)| d.relative).collect::<Vec<_>>()
+    );
+    let steady_max = steady[2..]
+        .iter()
+        .map(|(_, d)| d.relative)
+        .fold(0.0f32, f32::max);
+    let after = moved[4].1.relative;
+    assert!(
+        after > steady_max,
+        "after the change {after}, unchanged at most {steady_max}"
+    );
+}

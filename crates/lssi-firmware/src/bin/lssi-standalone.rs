@@ -32,7 +32,7 @@ use lssi_device::{DEFAULT_TERMS, Transport, wire};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{CHANNELS, WINDOW, platform, uart};
-use lssi_proto::{HostMsg, decode_frame};
+use lssi_proto::{HostMsg, WireDuty, decode_frame};
 
 type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
 
@@ -67,6 +67,12 @@ static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCel
 static TX_IDLE: AtomicBool = AtomicBool::new(true);
 /// Received bytes lost (ring full or UART overrun).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
+/// The longest the core stayed awake between two `wfi`s, clock ticks (the interrupts taken
+/// in between included): the longest wake-up, what a harvester's storage capacitor must
+/// carry at run current.
+static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
+/// `wfi`s executed (wake-ups).
+static SLEEPS: AtomicU32 = AtomicU32::new(0);
 
 /// The row rate of the image's own configuration, Hz: about 60 rows a forcing period of
 /// a harvester forced at 3.4 Hz (eveh, Ω = 21.4 rad/s), 10 a period at 20 Hz. The ADC
@@ -122,15 +128,16 @@ fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> 
     }
 }
 
-/// The stored configuration (a host's `Configure` frame), if there is a valid one.
-fn stored_config(recording: &Recording) -> Option<Config> {
+/// The stored configuration (a host's `Configure` frame) and its duty cycle, if there is a
+/// valid one.
+fn stored_config(recording: &Recording) -> Option<(Config, Option<WireDuty>)> {
     let mut buffer = [0u8; mps2::MAX_CONFIG];
     let frame = recording.config_frame(&mut buffer);
     if frame.is_empty() {
         return None;
     }
     match decode_frame::<HostMsg>(frame) {
-        Ok(HostMsg::Configure(c)) => Some(wire::config_from_wire(&c)),
+        Ok(HostMsg::Configure(c)) => Some((wire::config_from_wire(&c), c.duty)),
         _ => {
             defmt::warn!("the stored configuration does not decode: using the image's");
             None
@@ -163,7 +170,10 @@ fn main() -> ! {
     ) else {
         platform::exit(platform::EXIT_PANIC)
     };
-    let mut config = stored_config(&recording).unwrap_or_else(|| default_config(recording.rate_hz));
+    let (mut config, duty) = stored_config(&recording).map_or_else(
+        || (default_config(recording.rate_hz), None),
+        |(c, d)| (c, d),
+    );
     config.channels.velocity = recording.velocity;
     config.channels.input = recording.input;
     let rate = recording.rate_hz;
@@ -210,6 +220,17 @@ fn main() -> ! {
     let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS> =
         Reporter::new(config, row_hz as f32, BoardClock::HZ);
     reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
+    // A duty cycle: windows of identification, Model and Health at the end of each, the
+    // sensor left alone in between (the sampling interrupt drops the recording's samples
+    // of the interval: time goes on).
+    reporter.set_duty(duty, &SHARED);
+    if let Some(d) = duty {
+        defmt::info!(
+            "duty cycle: {=f32} s windows every {=f32} s",
+            d.window,
+            d.window + d.interval
+        );
+    }
     let mut link = Link { tx: tx_in };
 
     #[allow(unsafe_code)]
@@ -227,6 +248,8 @@ fn main() -> ! {
     }
     mps2::uart_interrupts_on();
     mps2::start_sampling(mps2::sampling_reload(rate));
+    let mut windows_logged = 0;
+    let mut woke = BoardClock.now();
 
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
@@ -235,12 +258,31 @@ fn main() -> ! {
         if reporter.finished() {
             finish(&reporter)
         }
+        if let Some(drift) = reporter.drift()
+            && drift.windows != windows_logged
+        {
+            windows_logged = drift.windows;
+            defmt::info!(
+                "window {=u32}: coefficients moved {=f32} (RMS relative), at most {=f32} (term {=u8}), {=u8} terms in or out",
+                drift.windows,
+                drift.relative,
+                drift.largest,
+                drift.largest_term,
+                drift.support_changes
+            );
+        }
         if idle {
             // Sleeps only if nothing waits; checked with interrupts off so that an
             // interrupt in between still wakes the `wfi` (it is taken right after).
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
+                    let awake = BoardClock.now().wrapping_sub(woke);
+                    AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
+                    SLEEPS.fetch_add(1, Ordering::Relaxed);
                     cortex_m::asm::wfi();
+                    // The interrupt that woke the core runs after this critical section:
+                    // it counts in the next wake-up.
+                    woke = BoardClock.now();
                 }
             });
         }
@@ -263,6 +305,13 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
         c.screenings_skipped.load(Ordering::Relaxed),
         reporter.frames_sent,
         RX_LOST.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "wake-ups: {=u32}, the longest {=u32} ticks awake (2.5 instructions a tick under -icount shift=4), the worst row {=u32} ticks, the worst screening {=u32} ticks",
+        SLEEPS.load(Ordering::Relaxed),
+        AWAKE_MAX.load(Ordering::Relaxed),
+        status.cost_max,
+        reporter.screen_cost_max()
     );
     platform::exit(platform::EXIT_SUCCESS)
 }

@@ -5,7 +5,8 @@ use crate::common;
 use common::frame;
 use lssi_proto::{
     Channels, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, NakReason, PROTOCOL_VERSION, PolyFamily,
-    SampleBatch, SampleEncoding, WireChannels, WireConfig, WireLibrary, WireSample, decode_frame,
+    SampleBatch, SampleEncoding, WireChannels, WireConfig, WireDuty, WireLibrary, WireSample,
+    decode_frame,
 };
 
 #[test]
@@ -25,6 +26,13 @@ fn golden_host_frames() {
             protocol_version: 6
         }),
         [0x01, 0x06, 0x06, 0x3A, 0x90, 0xC0, 0xD7, 0x00]
+    );
+    // A version-5 host's Hello still reads as one (variant 0 is frozen).
+    assert_eq!(
+        frame(&HostMsg::Hello {
+            protocol_version: 5
+        }),
+        [0x01, 0x06, 0x05, 0xCE, 0x63, 0x90, 0xC4, 0x00]
     );
     assert_eq!(
         frame(&HostMsg::Query),
@@ -125,12 +133,17 @@ fn golden_config() -> WireConfig {
         max_abs: 1e9,
         test_rows: 64,
         encoding: SampleEncoding::F32,
+        duty: Some(WireDuty {
+            window: 10.0,
+            interval: 590.0,
+        }),
     }
 }
 
 /// `WireConfig`'s bytes are those of protocol version 5's flat record (taken from main
 /// before the library and channel fields were nested and renamed after `Config`): nesting
-/// adds no framing in postcard, so the rename did not change the wire.
+/// adds no framing in postcard, so the rename did not change the wire. Version 6 appends
+/// `duty` (`01`, then window 10.0 and interval 590.0 as f32).
 #[test]
 fn golden_configure_frame() {
     let payload = [
@@ -138,6 +151,8 @@ fn golden_configure_frame() {
         0x00, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0x35, 0x40, 0x01, 0x00, 0x01, 0x00, 0x00, 0x00,
         0x00, 0x00, 0x00, 0x04, 0x40, 0x90, 0x4E, 0x18, 0x00, 0x04, 0x9A, 0x99, 0x99, 0x99, 0x99,
         0x99, 0xA9, 0x3F, 0x01, 0x00, 0x00, 0x00, 0x00, 0x65, 0xCD, 0xCD, 0x41, 0x40, 0x00,
+        // Version 6: Some(WireDuty { window: 10.0, interval: 590.0 }).
+        0x01, 0x00, 0x00, 0x20, 0x41, 0x00, 0x80, 0x13, 0x44,
     ];
     let mut buf = [0u8; 128];
     let bytes = postcard::to_slice(&golden_config(), &mut buf).expect("fits");
@@ -151,7 +166,7 @@ fn golden_configure_frame() {
         0x01, 0x02, 0x0A, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0x35, 0x40, 0x01, 0x02, 0x01, 0x01,
         0x01, 0x01, 0x01, 0x01, 0x06, 0x04, 0x40, 0x90, 0x4E, 0x18, 0x0B, 0x04, 0x9A, 0x99, 0x99,
         0x99, 0x99, 0x99, 0xA9, 0x3F, 0x01, 0x01, 0x01, 0x01, 0x06, 0x65, 0xCD, 0xCD, 0x41, 0x40,
-        0x05, 0xBF, 0xF8, 0x86, 0x7D, 0x00,
+        0x02, 0x01, 0x01, 0x03, 0x20, 0x41, 0x08, 0x80, 0x13, 0x44, 0xA6, 0x1A, 0x17, 0x96, 0x00,
     ];
     assert_eq!(frame(&HostMsg::Configure(golden_config())), golden);
     let mut bytes = golden;

@@ -5,8 +5,8 @@ use lssi_proto::{
     Channels, CompactBatch, CostUnit, DeviceMsg, Error, FrameDecoder, HostMsg, I16Encoding,
     MAX_BATCH, MAX_COMPACT_BATCH, MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, MODEL_PART_LEN, Message,
     ModelPart, ModelSnapshot, NakReason, PROTOCOL_VERSION, PolyFamily, SampleBatch, SampleEncoding,
-    SnapshotCause, SolutionSummary, TermCode, TermKind, WireChannels, WireConfig, WireLibrary,
-    WireSample, encode,
+    SnapshotCause, SolutionSummary, TermCode, TermKind, WireChannels, WireConfig, WireDuty,
+    WireLibrary, WireSample, encode,
 };
 pub use lssi_testkit::wire::{any_f64, any_wire_config};
 use proptest::collection::vec;
@@ -336,6 +336,10 @@ pub fn worst_config() -> WireConfig {
             t0: 1e300,
             dt: 1e-300,
             scale: [f32::MAX; 3],
+        }),
+        duty: Some(WireDuty {
+            window: f32::MAX,
+            interval: f32::MAX,
         }),
     }
 }
