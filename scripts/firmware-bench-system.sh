@@ -5,7 +5,8 @@
 # (crates/lssi-firmware/src/bench_system.rs; window 63, a row every 4 samples, a screening
 # every 10 000 samples, 30 000 samples), each push timed in instructions under
 # `qemu-system-arm -icount shift=0`; then the flash and RAM of the device image, which
-# identifies either (lssi-device's Configure or ConfigureSystem).
+# identifies one equation (default) or either (its `system` feature: lssi-device's
+# Configure or ConfigureSystem).
 #
 #   scripts/firmware-bench-system.sh          # about 1 min; scripts/firmware-bench.sh runs it
 #   LSSI_BENCH_RAW=1 scripts/firmware-bench-system.sh
@@ -21,6 +22,8 @@ cargo build --release --locked --quiet --features bench-system
 cp "$elf" "$work/bench-system.elf"
 cargo build --release --locked --quiet --bin lssi-firmware
 cp "$elf" "$work/device.elf"
+cargo build --release --locked --quiet --bin lssi-firmware --features system
+cp "$elf" "$work/device-system.elf"
 
 e="$work/bench-system.elf"
 timeout "${LSSI_TIMEOUT:-300}" qemu-system-arm -machine mps2-an386 -cpu cortex-m4 \
@@ -40,6 +43,7 @@ sizes() { # flash (.vector_table+.text+.rodata+.data) and static RAM (.data+.bss
         print s[".vector_table"] + s[".text"] + s[".rodata"] + s[".data"], s[".data"] + s[".bss"] + s[".uninit"] }'
 }
 read -r flash ram < <(sizes "$work/device.elf")
+read -r sys_flash sys_ram < <(sizes "$work/device-system.elf")
 for v in one two; do
     for k in all steady screen; do
         for f in mean max; do
@@ -72,6 +76,8 @@ row "screening, mean / worst" "$one_screen_mean / $one_screen_max" "$two_screen_
 row "peak stack, streaming and screening" "$one_stack B" "$two_stack B"
 row "the identifier in .bss (its slot)" "$one_size B" "$two_size B"
 echo
-echo "The device image (lssi-firmware, replay: Configure or ConfigureSystem, both identifiers in .bss):"
-echo "  flash $flash B, static RAM $ram B, static RAM + the deeper stack above $((ram + peak)) B"
+echo "The device image (lssi-firmware, replay), one channel (default) and with its \`system\` feature"
+echo "(Configure or ConfigureSystem: both identifiers in .bss):"
+echo "  one channel:  flash $flash B, static RAM $ram B, static RAM + the stack above $((ram + one_stack)) B"
+echo "  two channels: flash $sys_flash B, static RAM $sys_ram B, static RAM + the deeper stack above $((sys_ram + peak)) B"
 echo "instructions/sample: one channel $one_all_mean, two channels $two_all_mean (x and V, 2 equations)"

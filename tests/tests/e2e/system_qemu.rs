@@ -5,9 +5,12 @@
 //! --no-refine` for systems runs that identifier with that configuration).
 //!
 //! `#[ignore]`d like `qemu.rs` (QEMU and the firmware ELF are needed); `scripts/ci-qemu.sh`
-//! runs it with `--include-ignored`.
+//! runs it with `--include-ignored`. The image is the replay firmware built with its `system`
+//! feature (`cd crates/lssi-firmware && cargo build --release --features system`, copied to
+//! `lssi-firmware-system` beside the default image), or the one `LSSI_SYSTEM_FIRMWARE_ELF`
+//! names.
 
-use crate::qemu::{Link, Qemu, qemu_firmware};
+use crate::qemu::{Link, Qemu};
 use lssi_core::identifier::system::{SystemIdentifier, Target};
 use lssi_core::library::{Electrical, StateTerm};
 use lssi_core::{Config, LibraryConfig, PolyFamily, SystemConfig, SystemSample};
@@ -81,7 +84,7 @@ fn device(
     config: SystemConfig,
     points: &[PiezoPoint],
 ) -> (Vec<SystemSnapshot>, SystemSnapshot, (u32, u32)) {
-    let elf = qemu_firmware();
+    let elf = system_firmware();
     let dir = tempfile::tempdir().expect("temp dir");
     let socket = dir.path().join("uart.sock");
     let qemu = Qemu::start(&elf, &socket, &dir.path().join("defmt.bin"));
@@ -156,6 +159,33 @@ fn device(
     };
     drop(qemu);
     (scheduled, last, cost)
+}
+
+/// The replay image with systems; a missing QEMU or image fails the (asked-for) test.
+fn system_firmware() -> std::path::PathBuf {
+    let elf = std::env::var_os("LSSI_SYSTEM_FIRMWARE_ELF").map_or_else(
+        || {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
+                "../crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-firmware-system",
+            )
+        },
+        std::path::PathBuf::from,
+    );
+    let qemu = std::process::Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    assert!(
+        qemu,
+        "qemu-system-arm is not installed (bash scripts/ci-qemu.sh installs it)"
+    );
+    assert!(
+        elf.is_file(),
+        "no system firmware at {} (cd crates/lssi-firmware && cargo build --release --features system, \
+         then copy the ELF to lssi-firmware-system; bash scripts/ci-qemu.sh does both)",
+        elf.display()
+    );
+    elf
 }
 
 fn describe(s: &SystemSnapshot) -> String {
