@@ -1,13 +1,15 @@
 //! What the device does with each decoded frame: configure, apply a sample batch exactly
 //! once in `seq` order, query, reset.
 
-use crate::system::Mode;
+use crate::device::Mode;
 use crate::{CostMeter, Device, Stats, Transport, wire};
 use core::cmp::Ordering;
 use lssi_core::{IdentifierSlot, Sample};
+#[cfg(feature = "system")]
+use lssi_proto::WireSystemConfig;
 use lssi_proto::{
     CONTROL_SEQ, Error, HostCommand, NakReason, SampleEncoding, SnapshotCause, WireConfig,
-    WireSample, WireSystemConfig, decode_host_frame,
+    WireSample, decode_host_frame,
 };
 
 impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
@@ -36,6 +38,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 );
                 return self.batch_replies(outcome, link);
             }
+            #[cfg(feature = "system")]
             Ok(HostCommand::SystemSamples(batch)) => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 return self.system_batch(&batch, link, meter);
@@ -83,6 +86,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         match (command, self.mode) {
             (Command::Hello, _) => self.send_hello(link),
             (Command::Configure(config), _) => self.configure(&config, link),
+            #[cfg(feature = "system")]
             (Command::ConfigureSystem(config), _) => self.configure_system(&config, link),
             (Command::Query, Mode::Single) => self.query(link, meter),
             (Command::Query, Mode::System) => self.query_system(link, meter),
@@ -157,7 +161,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         self.stats.reset_costs();
     }
 
-    fn reset<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+    pub(crate) fn reset<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
         // Rebuilt in place from the kept configuration, like `Configure`.
         let rebuilt = self
             .identifier
@@ -242,7 +246,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
-    fn query<L: Transport, M: CostMeter>(
+    pub(crate) fn query<L: Transport, M: CostMeter>(
         &mut self,
         link: &mut L,
         meter: &mut M,
@@ -267,6 +271,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 enum Command {
     Hello,
     Configure(WireConfig),
+    #[cfg(feature = "system")]
     ConfigureSystem(WireSystemConfig),
     Query,
     Reset,
@@ -279,14 +284,18 @@ impl Command {
     fn from_host(command: HostCommand<'_>) -> Self {
         match command {
             HostCommand::Configure(config) => Command::Configure(config),
+            #[cfg(feature = "system")]
             HostCommand::ConfigureSystem(config) => Command::ConfigureSystem(config),
             HostCommand::Query => Command::Query,
             HostCommand::Reset => Command::Reset,
             HostCommand::ModelPart { offset } => Command::ModelPart(offset),
-            HostCommand::Hello { .. }
-            | HostCommand::Samples(_)
-            | HostCommand::Compact(_)
-            | HostCommand::SystemSamples(_) => Command::Hello,
+            HostCommand::Hello { .. } | HostCommand::Samples(_) | HostCommand::Compact(_) => {
+                Command::Hello
+            }
+            // lssi-proto's system messages when this crate's `system` feature is off (another
+            // crate asked lssi-proto for them): not applied here, `SystemSamples` above.
+            #[allow(unreachable_patterns, reason = "reachable only without the feature")]
+            _ => Command::Hello,
         }
     }
 }

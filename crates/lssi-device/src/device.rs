@@ -1,6 +1,5 @@
 //! The device application's state and its main loop: bytes in, frames out.
 
-use crate::system::Mode;
 use crate::{
     CostMeter, CostUnit, DEFAULT_CHANNELS, DEFAULT_TERMS, DEFAULT_WINDOW, READ_CHUNK, Stats,
     Transport,
@@ -13,6 +12,17 @@ use lssi_proto::{
 };
 #[cfg(doc)]
 use lssi_proto::{HostMsg, PROTOCOL_VERSION};
+
+/// Which identifier the device runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) enum Mode {
+    /// One equation (`Configure`), or nothing configured yet.
+    #[default]
+    Single,
+    /// A system (`ConfigureSystem`; the `system` feature).
+    #[cfg_attr(not(feature = "system"), allow(dead_code, reason = "never entered"))]
+    System,
+}
 
 /// The device application: a frame decoder, the identifier (f32, window capacity `W`
 /// samples, `P` library terms, ring buffers for `C` sample channels) and the link state.
@@ -237,3 +247,28 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 /// A log frame fits in the link buffer past the receive part.
 const _: () =
     assert!(MAX_FRAME_LEN - MAX_HOST_FRAME_LEN >= lssi_proto::size::frame_len(1 + 1 + MAX_LOG));
+
+/// Without the `system` feature (a device image that must stay small) the device never
+/// leaves [`Mode::Single`]: `ConfigureSystem` does not decode (`Nak Decode`).
+#[cfg(not(feature = "system"))]
+impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
+    pub(crate) fn system_base_config(&self) -> Option<&Config> {
+        None
+    }
+
+    pub(crate) fn system_counts(&self) -> Option<(u64, u64, u64)> {
+        None
+    }
+
+    pub(crate) fn query_system<L: Transport, M: CostMeter>(
+        &mut self,
+        link: &mut L,
+        meter: &mut M,
+    ) -> Result<(), L::Error> {
+        self.query(link, meter)
+    }
+
+    pub(crate) fn reset_system<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+        self.reset(link)
+    }
+}

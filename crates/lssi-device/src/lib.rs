@@ -118,6 +118,7 @@ mod platform;
 mod replies;
 pub mod standalone;
 mod stats;
+#[cfg(feature = "system")]
 pub mod system;
 pub mod wire;
 

@@ -13,18 +13,14 @@
 //! the device reports, so that the device's equations can be compared bit for bit with the
 //! host's f32 `SystemIdentifier` on the same samples.
 
-#[cfg(feature = "system")]
-use crate::Stats;
+use crate::device::Mode;
 use crate::wire::{WireError, config_from_wire, config_to_wire};
-use crate::{CostMeter, Device, Transport};
-#[cfg(feature = "system")]
+use crate::{CostMeter, Device, Stats, Transport};
 use core::cmp::Ordering;
 use lssi_core::identifier::system::{SystemConfigError, SystemModel, Target};
 use lssi_core::library::{Electrical, StateTerm};
 use lssi_core::{ConfigError, Real, SystemConfig};
-#[cfg(feature = "system")]
 use lssi_core::{SystemSample, SystemSlot};
-#[cfg(feature = "system")]
 use lssi_proto::DeviceMsg;
 use lssi_proto::{
     CONTROL_SEQ, MAX_TERMS, NakReason, SnapshotCause, SolutionSummary, StateTermCode, SystemBatch,
@@ -230,17 +226,6 @@ fn to_f32<T: Real>(value: T) -> f32 {
     value.to_f64() as f32
 }
 
-/// Which identifier the device runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) enum Mode {
-    /// One equation (`Configure`), or nothing configured yet.
-    #[default]
-    Single,
-    /// A system (`ConfigureSystem`).
-    System,
-}
-
-#[cfg(feature = "system")]
 impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
     /// The system's configuration's base, once `ConfigureSystem` is in force.
     pub(crate) fn system_base_config(&self) -> Option<&lssi_core::Config> {
@@ -417,48 +402,5 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             Some(snapshot) => self.send(link, &DeviceMsg::SystemModel(snapshot)),
             None => Ok(()),
         }
-    }
-}
-
-/// Without the `system` feature (a device image that must stay small): `ConfigureSystem`
-/// is naked `BadConfig` and system samples `NotConfigured`; the device never leaves
-/// [`Mode::Single`].
-#[cfg(not(feature = "system"))]
-impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
-    pub(crate) fn system_base_config(&self) -> Option<&lssi_core::Config> {
-        None
-    }
-
-    pub(crate) fn system_counts(&self) -> Option<(u64, u64, u64)> {
-        None
-    }
-
-    pub(crate) fn configure_system<L: Transport>(
-        &mut self,
-        _config: &WireSystemConfig,
-        link: &mut L,
-    ) -> Result<(), L::Error> {
-        self.nak(link, CONTROL_SEQ, NakReason::BadConfig)
-    }
-
-    pub(crate) fn system_batch<L: Transport, M: CostMeter>(
-        &mut self,
-        batch: &SystemBatch,
-        link: &mut L,
-        _meter: &mut M,
-    ) -> Result<(), L::Error> {
-        self.nak(link, batch.seq, NakReason::NotConfigured)
-    }
-
-    pub(crate) fn query_system<L: Transport, M: CostMeter>(
-        &mut self,
-        link: &mut L,
-        _meter: &mut M,
-    ) -> Result<(), L::Error> {
-        self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
-    }
-
-    pub(crate) fn reset_system<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
-        self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
     }
 }

@@ -52,6 +52,7 @@ pub enum WireError {
     /// A snapshot's term code names no lssi-core term.
     BadTerm(TermCode),
     /// A system snapshot's term code names no term of a shared library.
+    #[cfg(feature = "system")]
     BadStateTerm(lssi_proto::StateTermCode),
     /// A snapshot has a different number of coefficients than terms.
     CoefficientCount {
@@ -77,6 +78,7 @@ impl fmt::Display for WireError {
                 f,
                 "the model has {n} solutions, but a snapshot carries at most {MAX_SOLUTIONS}"
             ),
+            #[cfg(feature = "system")]
             WireError::BadStateTerm(code) => write!(
                 f,
                 "the system snapshot's term code {:?} {:?} is not a library term",

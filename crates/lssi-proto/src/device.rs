@@ -1,7 +1,9 @@
 //! Device → host messages.
 
+#[cfg(feature = "system")]
+use crate::SystemSnapshot;
 use crate::size::{max_of, vec_max_size};
-use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart, SystemSnapshot};
+use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
@@ -104,6 +106,7 @@ pub enum DeviceMsg {
     ModelPart(ModelPart),
     /// A system's current model (every equation), sent where a single equation's
     /// [`DeviceMsg::Model`] would be once a `ConfigureSystem` is in force. Since version 6.
+    #[cfg(feature = "system")]
     SystemModel(SystemSnapshot),
 }
 
@@ -124,6 +127,7 @@ impl MaxSize for DeviceMsg {
             + f32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
         ModelPart::POSTCARD_MAX_SIZE,
+        #[cfg(feature = "system")]
         SystemSnapshot::POSTCARD_MAX_SIZE,
     ]);
 }

@@ -19,8 +19,10 @@ use crate::batch::BatchHeader;
 use crate::compact::CompactRef;
 use crate::{
     BatchRef, CRC_LEN, DeviceMsg, Error, HostCommand, HostMsg, Message, PROTOCOL_VERSION,
-    SystemBatch, WireConfig, WireSystemConfig,
+    WireConfig,
 };
+#[cfg(feature = "system")]
+use crate::{SystemBatch, WireSystemConfig};
 use core::marker::PhantomData;
 use crc::{CRC_32_ISCSI, Crc};
 use postcard::ser_flavors::crc::CrcModifier;
@@ -116,7 +118,9 @@ pub fn decode_host_frame(frame: &mut [u8]) -> Result<HostCommand<'_>, Error> {
         HostShape::Compact(batch) if batch.is_well_formed() => HostCommand::Compact(batch),
         HostShape::Compact(_) => return Err(Error::Decode),
         HostShape::ModelPart { offset } => HostCommand::ModelPart { offset },
+        #[cfg(feature = "system")]
         HostShape::ConfigureSystem(config) => HostCommand::ConfigureSystem(config),
+        #[cfg(feature = "system")]
         HostShape::SystemSamples(batch) => HostCommand::SystemSamples(batch),
     })
 }
@@ -164,7 +168,9 @@ enum HostShape<'a> {
     ModelPart {
         offset: u16,
     },
+    #[cfg(feature = "system")]
     ConfigureSystem(WireSystemConfig),
+    #[cfg(feature = "system")]
     SystemSamples(SystemBatch),
 }
 

@@ -1,8 +1,8 @@
 //! Host → device messages.
 
-use crate::{
-    BatchRef, CompactBatch, CompactRef, SampleBatch, SampleEncoding, SystemBatch, WireSystemConfig,
-};
+use crate::{BatchRef, CompactBatch, CompactRef, SampleBatch, SampleEncoding};
+#[cfg(feature = "system")]
+use crate::{SystemBatch, WireSystemConfig};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
@@ -43,9 +43,11 @@ pub enum HostMsg {
     },
     /// Sets up (or replaces) a system's identifier (x'' and one equation per electrical
     /// channel, `lssi_core::SystemIdentifier`); acked or naked as `Configure`. Since version 6.
+    #[cfg(feature = "system")]
     ConfigureSystem(WireSystemConfig),
     /// Samples for a system's identifier, numbered and applied like [`HostMsg::Samples`].
     /// Since version 6.
+    #[cfg(feature = "system")]
     SystemSamples(SystemBatch),
 }
 
@@ -79,8 +81,10 @@ pub enum HostCommand<'a> {
         offset: u16,
     },
     /// [`HostMsg::ConfigureSystem`].
+    #[cfg(feature = "system")]
     ConfigureSystem(WireSystemConfig),
     /// [`HostMsg::SystemSamples`] (copied out of the frame: at most 12 samples).
+    #[cfg(feature = "system")]
     SystemSamples(SystemBatch),
 }
 
@@ -88,6 +92,7 @@ impl HostCommand<'_> {
     /// The same message as a [`HostMsg`] (copies a batch's samples out).
     pub fn to_msg(&self) -> HostMsg {
         match *self {
+            #[cfg(feature = "system")]
             HostCommand::SystemSamples(ref batch) => HostMsg::SystemSamples(batch.clone()),
             HostCommand::Hello { protocol_version } => HostMsg::Hello { protocol_version },
             HostCommand::Configure(config) => HostMsg::Configure(config),
@@ -96,6 +101,7 @@ impl HostCommand<'_> {
             HostCommand::Reset => HostMsg::Reset,
             HostCommand::Compact(batch) => HostMsg::Compact(batch.to_batch()),
             HostCommand::ModelPart { offset } => HostMsg::ModelPart { offset },
+            #[cfg(feature = "system")]
             HostCommand::ConfigureSystem(config) => HostMsg::ConfigureSystem(config),
         }
     }
