@@ -1,6 +1,7 @@
 //! What the device does with each decoded frame: configure, apply a sample batch exactly
 //! once in `seq` order, query, reset.
 
+#[cfg(feature = "system")]
 use crate::device::Mode;
 use crate::{CostMeter, Device, Stats, Transport, wire};
 use core::cmp::Ordering;
@@ -21,9 +22,10 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         link: &mut L,
         meter: &mut M,
     ) -> Result<(), L::Error> {
+        let system = self.in_system();
         let frame = self.buffer.get_mut(..len).unwrap_or(&mut []);
         let command = match decode_host_frame(frame) {
-            Ok(HostCommand::Samples(batch)) if self.mode == Mode::Single => {
+            Ok(HostCommand::Samples(batch)) if !system => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 // The samples are pushed straight from the frame's bytes; the replies are
                 // sent once they are done with.
@@ -49,7 +51,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 return self.nak(link, seq, NakReason::NotConfigured);
             }
-            Ok(HostCommand::Compact(batch)) if self.mode == Mode::System => {
+            Ok(HostCommand::Compact(batch)) if system => {
                 let seq = batch.seq;
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 return self.nak(link, seq, NakReason::NotConfigured);
@@ -83,18 +85,18 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 Command::Hello
             }
         };
-        match (command, self.mode) {
+        match (command, system) {
             (Command::Hello, _) => self.send_hello(link),
             (Command::Configure(config), _) => self.configure(&config, link),
             #[cfg(feature = "system")]
             (Command::ConfigureSystem(config), _) => self.configure_system(&config, link),
-            (Command::Query, Mode::Single) => self.query(link, meter),
-            (Command::Query, Mode::System) => self.query_system(link, meter),
-            (Command::Reset, Mode::Single) => self.reset(link),
-            (Command::Reset, Mode::System) => self.reset_system(link),
-            (Command::ModelPart(offset), Mode::Single) => self.send_model_part(link, offset),
+            (Command::Query, false) => self.query(link, meter),
+            (Command::Query, true) => self.query_system(link, meter),
+            (Command::Reset, false) => self.reset(link),
+            (Command::Reset, true) => self.reset_system(link),
+            (Command::ModelPart(offset), false) => self.send_model_part(link, offset),
             // The model in parts is one equation's.
-            (Command::ModelPart(_), Mode::System) => {
+            (Command::ModelPart(_), true) => {
                 self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
             }
         }
@@ -140,7 +142,10 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         match self.identifier.configure(config) {
             Ok(_) => {
                 log!(info, "configured: {}", config);
-                self.mode = Mode::Single;
+                #[cfg(feature = "system")]
+                {
+                    self.mode = Mode::Single;
+                }
                 self.encoding = encoding;
                 self.restarted();
                 self.ack(link, CONTROL_SEQ)

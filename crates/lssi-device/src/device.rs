@@ -14,13 +14,13 @@ use lssi_proto::{
 use lssi_proto::{HostMsg, PROTOCOL_VERSION};
 
 /// Which identifier the device runs.
+#[cfg(feature = "system")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) enum Mode {
     /// One equation (`Configure`), or nothing configured yet.
     #[default]
     Single,
     /// A system (`ConfigureSystem`; the `system` feature).
-    #[cfg_attr(not(feature = "system"), allow(dead_code, reason = "never entered"))]
     System,
 }
 
@@ -52,6 +52,7 @@ pub struct Device<
     #[cfg(feature = "system")]
     pub(crate) system: SystemSlot<f32, W, P, 2, C>,
     /// Which of the two the commands address.
+    #[cfg(feature = "system")]
     pub(crate) mode: Mode,
     pub(crate) next_seq: u32,
     /// How sample batches travel, as the configuration in force says.
@@ -90,6 +91,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             identifier: IdentifierSlot::new(),
             #[cfg(feature = "system")]
             system: SystemSlot::new(),
+            #[cfg(feature = "system")]
             mode: Mode::Single,
             next_seq: 0,
             encoding: SampleEncoding::F32,
@@ -182,17 +184,19 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 
     /// The identifier, once configured (`None` while a system is).
     pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
-        match self.mode {
-            Mode::Single => self.identifier.get(),
-            Mode::System => None,
+        if self.in_system() {
+            None
+        } else {
+            self.identifier.get()
         }
     }
 
     /// The configuration in force, once configured (a system's: its `base`).
     pub fn config(&self) -> Option<&Config> {
-        match self.mode {
-            Mode::Single => self.identifier.get().map(Identifier::config),
-            Mode::System => self.system_base_config(),
+        if self.in_system() {
+            self.system_base_config()
+        } else {
+            self.identifier.get().map(Identifier::config)
         }
     }
 
@@ -201,9 +205,22 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         self.next_seq
     }
 
+    /// Whether a system is configured (`ConfigureSystem`; never without the `system`
+    /// feature, whose branches then compile out).
+    pub(crate) fn in_system(&self) -> bool {
+        #[cfg(feature = "system")]
+        {
+            self.mode == Mode::System
+        }
+        #[cfg(not(feature = "system"))]
+        {
+            false
+        }
+    }
+
     /// The health report as it would be sent now, with costs in `unit`.
     pub fn health(&self, unit: CostUnit) -> DeviceMsg {
-        let single = self.identifier.get().filter(|_| self.mode == Mode::Single);
+        let single = self.identifier.get().filter(|_| !self.in_system());
         let (samples, rejected, buffer_fill, screenings) = match (single, self.system_counts()) {
             (Some(id), _) => {
                 let c = id.counters();
