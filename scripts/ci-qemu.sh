@@ -6,7 +6,9 @@
 #   4. the end-to-end tests: the bundled recording replayed through the firmware under QEMU
 #      must give the model of `lssi identify --f32 --no-refine` (tests/tests/qemu.rs), and the standalone
 #      image sampling a 10 kHz recording by its timer must lose no sample and end with that
-#      model (tests/tests/standalone_qemu.rs); ignored by a plain `cargo test`, run here with
+#      model (tests/tests/standalone_qemu.rs), and a simulated piezo harvester (x and V) through
+#      the `system` image must give the host's f32 SystemIdentifier's two equations
+#      (tests/tests/e2e/system_qemu.rs); ignored by a plain `cargo test`, run here with
 #      --include-ignored (a missing QEMU or ELF fails them);
 #   5. the identifier's cost, size and stack table (scripts/firmware-bench.sh).
 # Exits non-zero at the first failure. LSSI_CI_SKIP_BENCH=1 leaves out step 5.
@@ -31,15 +33,18 @@ rustup target add thumbv7em-none-eabihf >/dev/null
 rustup component add llvm-tools >/dev/null
 
 step "firmware release ELF"
-(cd crates/lssi-firmware && cargo build --release --locked)
 elf="$root/crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-firmware"
-ls -l "$elf"
+# The replay image that also identifies systems (x and V), kept beside the default one.
+(cd crates/lssi-firmware && cargo build --release --locked --features system)
+cp "$elf" "$elf-system"
+(cd crates/lssi-firmware && cargo build --release --locked)
+ls -l "$elf" "$elf-system"
 
 step "firmware smoke test under QEMU"
 crates/lssi-firmware/scripts/qemu-check.sh
 
 step "replay through the QEMU firmware == lssi identify --f32 --no-refine; the standalone instrument at 10 kHz"
-LSSI_FIRMWARE_ELF="$elf" \
+LSSI_FIRMWARE_ELF="$elf" LSSI_SYSTEM_FIRMWARE_ELF="$elf-system" \
     cargo test --locked --release -p lssi-tests --test e2e -- qemu --include-ignored --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then

@@ -381,3 +381,6 @@ echo
 echo "What the device image's flash holds (scripts/flash-breakdown.sh):"
 echo
 bash "$root/scripts/flash-breakdown.sh" "$work/device.elf" 15
+
+# One channel against two (x and V: a harvester's x'' and V'), and the device image's size.
+bash "$root/scripts/firmware-bench-system.sh"

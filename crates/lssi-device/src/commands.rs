@@ -1,9 +1,13 @@
 //! What the device does with each decoded frame: configure, apply a sample batch exactly
 //! once in `seq` order, query, reset.
 
+#[cfg(feature = "system")]
+use crate::device::Mode;
 use crate::{CostMeter, Device, Stats, Transport, wire};
 use core::cmp::Ordering;
 use lssi_core::{IdentifierSlot, Sample};
+#[cfg(feature = "system")]
+use lssi_proto::WireSystemConfig;
 use lssi_proto::{
     CONTROL_SEQ, Error, HostCommand, NakReason, SampleEncoding, SnapshotCause, WireConfig,
     WireSample, decode_host_frame,
@@ -18,9 +22,10 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         link: &mut L,
         meter: &mut M,
     ) -> Result<(), L::Error> {
+        let system = self.in_system();
         let frame = self.buffer.get_mut(..len).unwrap_or(&mut []);
         let command = match decode_host_frame(frame) {
-            Ok(HostCommand::Samples(batch)) => {
+            Ok(HostCommand::Samples(batch)) if !system => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
                 // The samples are pushed straight from the frame's bytes; the replies are
                 // sent once they are done with.
@@ -34,6 +39,22 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                     meter,
                 );
                 return self.batch_replies(outcome, link);
+            }
+            #[cfg(feature = "system")]
+            Ok(HostCommand::SystemSamples(batch)) => {
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.system_batch(&batch, link, meter);
+            }
+            Ok(HostCommand::Samples(batch)) => {
+                // One equation's samples while a system is configured.
+                let seq = batch.seq;
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.nak(link, seq, NakReason::NotConfigured);
+            }
+            Ok(HostCommand::Compact(batch)) if system => {
+                let seq = batch.seq;
+                self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
+                return self.nak(link, seq, NakReason::NotConfigured);
             }
             Ok(HostCommand::Compact(batch)) => {
                 self.stats.frames_ok = self.stats.frames_ok.wrapping_add(1);
@@ -64,12 +85,20 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
                 Command::Hello
             }
         };
-        match command {
-            Command::Hello => self.send_hello(link),
-            Command::Configure(config) => self.configure(&config, link),
-            Command::Query => self.query(link, meter),
-            Command::Reset => self.reset(link),
-            Command::ModelPart(offset) => self.send_model_part(link, offset),
+        match (command, system) {
+            (Command::Hello, _) => self.send_hello(link),
+            (Command::Configure(config), _) => self.configure(&config, link),
+            #[cfg(feature = "system")]
+            (Command::ConfigureSystem(config), _) => self.configure_system(&config, link),
+            (Command::Query, false) => self.query(link, meter),
+            (Command::Query, true) => self.query_system(link, meter),
+            (Command::Reset, false) => self.reset(link),
+            (Command::Reset, true) => self.reset_system(link),
+            (Command::ModelPart(offset), false) => self.send_model_part(link, offset),
+            // The model in parts is one equation's.
+            (Command::ModelPart(_), true) => {
+                self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
+            }
         }
     }
 
@@ -113,6 +142,10 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         match self.identifier.configure(config) {
             Ok(_) => {
                 log!(info, "configured: {}", config);
+                #[cfg(feature = "system")]
+                {
+                    self.mode = Mode::Single;
+                }
                 self.encoding = encoding;
                 self.restarted();
                 self.ack(link, CONTROL_SEQ)
@@ -133,7 +166,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         self.stats.reset_costs();
     }
 
-    fn reset<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+    pub(crate) fn reset<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
         // Rebuilt in place from the kept configuration, like `Configure`.
         let rebuilt = self
             .identifier
@@ -218,7 +251,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         }
     }
 
-    fn query<L: Transport, M: CostMeter>(
+    pub(crate) fn query<L: Transport, M: CostMeter>(
         &mut self,
         link: &mut L,
         meter: &mut M,
@@ -243,6 +276,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 enum Command {
     Hello,
     Configure(WireConfig),
+    #[cfg(feature = "system")]
+    ConfigureSystem(WireSystemConfig),
     Query,
     Reset,
     ModelPart(u16),
@@ -254,12 +289,18 @@ impl Command {
     fn from_host(command: HostCommand<'_>) -> Self {
         match command {
             HostCommand::Configure(config) => Command::Configure(config),
+            #[cfg(feature = "system")]
+            HostCommand::ConfigureSystem(config) => Command::ConfigureSystem(config),
             HostCommand::Query => Command::Query,
             HostCommand::Reset => Command::Reset,
             HostCommand::ModelPart { offset } => Command::ModelPart(offset),
             HostCommand::Hello { .. } | HostCommand::Samples(_) | HostCommand::Compact(_) => {
                 Command::Hello
             }
+            // lssi-proto's system messages when this crate's `system` feature is off (another
+            // crate asked lssi-proto for them): not applied here, `SystemSamples` above.
+            #[allow(unreachable_patterns, reason = "reachable only without the feature")]
+            _ => Command::Hello,
         }
     }
 }

@@ -4,12 +4,25 @@ use crate::{
     CostMeter, CostUnit, DEFAULT_CHANNELS, DEFAULT_TERMS, DEFAULT_WINDOW, READ_CHUNK, Stats,
     Transport,
 };
+#[cfg(feature = "system")]
+use lssi_core::SystemSlot;
 use lssi_core::{Config, Identifier, IdentifierSlot};
 use lssi_proto::{
     DeviceMsg, MAX_FRAME_LEN, MAX_HOST_FRAME_LEN, MAX_LOG, MAX_TERMS, SampleEncoding, encode,
 };
 #[cfg(doc)]
 use lssi_proto::{HostMsg, PROTOCOL_VERSION};
+
+/// Which identifier the device runs.
+#[cfg(feature = "system")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) enum Mode {
+    /// One equation (`Configure`), or nothing configured yet.
+    #[default]
+    Single,
+    /// A system (`ConfigureSystem`; the `system` feature).
+    System,
+}
 
 /// The device application: a frame decoder, the identifier (f32, window capacity `W`
 /// samples, `P` library terms, ring buffers for `C` sample channels) and the link state.
@@ -34,6 +47,13 @@ pub struct Device<
     pub(crate) skipping: bool,
     /// Configured in place: the identifier never exists on the stack.
     pub(crate) identifier: IdentifierSlot<f32, W, P, C>,
+    /// A system's identifier (x'' and V', `ConfigureSystem`), configured in place too
+    /// (the `system` feature: 9.8 KB of RAM, 20 KB of flash on the Cortex-M4F).
+    #[cfg(feature = "system")]
+    pub(crate) system: SystemSlot<f32, W, P, 2, C>,
+    /// Which of the two the commands address.
+    #[cfg(feature = "system")]
+    pub(crate) mode: Mode,
     pub(crate) next_seq: u32,
     /// How sample batches travel, as the configuration in force says.
     pub(crate) encoding: SampleEncoding,
@@ -69,6 +89,10 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             received: 0,
             skipping: false,
             identifier: IdentifierSlot::new(),
+            #[cfg(feature = "system")]
+            system: SystemSlot::new(),
+            #[cfg(feature = "system")]
+            mode: Mode::Single,
             next_seq: 0,
             encoding: SampleEncoding::F32,
             dirty: false,
@@ -158,14 +182,22 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         &self.stats
     }
 
-    /// The identifier, once configured.
+    /// The identifier, once configured (`None` while a system is).
     pub fn identifier(&self) -> Option<&Identifier<f32, W, P, C>> {
-        self.identifier.get()
+        if self.in_system() {
+            None
+        } else {
+            self.identifier.get()
+        }
     }
 
-    /// The configuration in force, once configured.
+    /// The configuration in force, once configured (a system's: its `base`).
     pub fn config(&self) -> Option<&Config> {
-        self.identifier.get().map(Identifier::config)
+        if self.in_system() {
+            self.system_base_config()
+        } else {
+            self.identifier.get().map(Identifier::config)
+        }
     }
 
     /// The sequence number of the next sample batch to apply.
@@ -173,15 +205,35 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
         self.next_seq
     }
 
+    /// Whether a system is configured (`ConfigureSystem`; never without the `system`
+    /// feature, whose branches then compile out).
+    pub(crate) fn in_system(&self) -> bool {
+        #[cfg(feature = "system")]
+        {
+            self.mode == Mode::System
+        }
+        #[cfg(not(feature = "system"))]
+        {
+            false
+        }
+    }
+
     /// The health report as it would be sent now, with costs in `unit`.
     pub fn health(&self, unit: CostUnit) -> DeviceMsg {
-        let (samples, rejected, buffer_fill, screenings) = match self.identifier.get() {
-            Some(id) => {
+        let single = self.identifier.get().filter(|_| !self.in_system());
+        let (samples, rejected, buffer_fill, screenings) = match (single, self.system_counts()) {
+            (Some(id), _) => {
                 let c = id.counters();
                 let fill = u16::try_from(id.buffered()).unwrap_or(u16::MAX);
                 (c.accepted, c.rejected(), fill, c.screenings)
             }
-            None => (0, 0, 0, 0),
+            (None, Some((accepted, rejected, screenings))) => {
+                // The rings fill with every sample accepted, up to their capacity.
+                let fill = accepted.min(W as u64);
+                let fill = u16::try_from(fill).unwrap_or(u16::MAX);
+                (accepted, rejected, fill, screenings)
+            }
+            (None, None) => (0, 0, 0, 0),
         };
         let s = &self.stats;
         DeviceMsg::Health {
@@ -212,3 +264,28 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 /// A log frame fits in the link buffer past the receive part.
 const _: () =
     assert!(MAX_FRAME_LEN - MAX_HOST_FRAME_LEN >= lssi_proto::size::frame_len(1 + 1 + MAX_LOG));
+
+/// Without the `system` feature (a device image that must stay small) the device never
+/// leaves [`Mode::Single`]: `ConfigureSystem` does not decode (`Nak Decode`).
+#[cfg(not(feature = "system"))]
+impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
+    pub(crate) fn system_base_config(&self) -> Option<&Config> {
+        None
+    }
+
+    pub(crate) fn system_counts(&self) -> Option<(u64, u64, u64)> {
+        None
+    }
+
+    pub(crate) fn query_system<L: Transport, M: CostMeter>(
+        &mut self,
+        link: &mut L,
+        meter: &mut M,
+    ) -> Result<(), L::Error> {
+        self.query(link, meter)
+    }
+
+    pub(crate) fn reset_system<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
+        self.reset(link)
+    }
+}

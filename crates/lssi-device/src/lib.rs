@@ -74,6 +74,7 @@
 //! | `Samples` before any `Configure` | `Nak { seq: b.seq, NotConfigured }` |
 //! | `Query` | screens if samples came since the last screening, then `Model` (cause `Query`) if a model exists, then always `Health` |
 //! | `Reset` | the identifier rebuilt from the kept configuration, next expected seq 0: `Ack { seq: CONTROL_SEQ }` (`Nak { CONTROL_SEQ, NotConfigured }` without one) |
+//! | `ConfigureSystem`, `SystemSamples` (the `system` feature, default) | a system of equations (x'' and V' from x and V): see the `system` module; `Query`, `Reset` and scheduled screenings then send `SystemModel`; without the feature they do not decode (`Nak Decode`) |
 //! | a frame failing COBS, CRC or overrunning the receive buffer | nothing; `crc_errors` + 1 (the host's timeout resends) |
 //! | a frame passing the CRC that does not decode | `Nak { seq: next expected, Decode }`; `decode_errors` + 1 |
 //!
@@ -118,6 +119,8 @@ mod platform;
 mod replies;
 pub mod standalone;
 mod stats;
+#[cfg(feature = "system")]
+pub mod system;
 pub mod wire;
 
 pub use device::Device;

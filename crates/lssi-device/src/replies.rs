@@ -94,7 +94,11 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
 
     /// Frames `message` into the link buffer and writes it. Only between frames: the
     /// frame received last has been handled.
-    fn send<L: Transport>(&mut self, link: &mut L, message: &DeviceMsg) -> Result<(), L::Error> {
+    pub(crate) fn send<L: Transport>(
+        &mut self,
+        link: &mut L,
+        message: &DeviceMsg,
+    ) -> Result<(), L::Error> {
         // Cannot fail: the buffer holds the longest device frame.
         let Ok(len) = encode(message, &mut self.buffer) else {
             return Ok(());

@@ -51,6 +51,9 @@ pub enum WireError {
     TooManySolutions(usize),
     /// A snapshot's term code names no lssi-core term.
     BadTerm(TermCode),
+    /// A system snapshot's term code names no term of a shared library.
+    #[cfg(feature = "system")]
+    BadStateTerm(lssi_proto::StateTermCode),
     /// A snapshot has a different number of coefficients than terms.
     CoefficientCount {
         /// Terms in the snapshot.
@@ -74,6 +77,12 @@ impl fmt::Display for WireError {
             WireError::TooManySolutions(n) => write!(
                 f,
                 "the model has {n} solutions, but a snapshot carries at most {MAX_SOLUTIONS}"
+            ),
+            #[cfg(feature = "system")]
+            WireError::BadStateTerm(code) => write!(
+                f,
+                "the system snapshot's term code {:?} {:?} is not a library term",
+                code.kind, code.powers
             ),
             WireError::BadTerm(code) => write!(
                 f,

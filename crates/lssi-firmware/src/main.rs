@@ -11,12 +11,18 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
-#[cfg(not(any(feature = "bench", feature = "bench-identifier")))]
+#[cfg(not(any(
+    feature = "bench",
+    feature = "bench-identifier",
+    feature = "bench-system"
+)))]
 mod app;
 #[cfg(feature = "bench")]
 mod bench;
 #[cfg(feature = "bench-identifier")]
 mod bench_identifier;
+#[cfg(feature = "bench-system")]
+mod bench_system;
 
 use cortex_m_rt::entry;
 use lssi_firmware::{cost, platform, stack, uart};
@@ -51,7 +57,11 @@ fn main() -> ! {
         stack::size()
     );
 
-    #[cfg(any(feature = "bench", feature = "bench-identifier"))]
+    #[cfg(any(
+        feature = "bench",
+        feature = "bench-identifier",
+        feature = "bench-system"
+    ))]
     {
         // The benchmarks do not use the link; UART0 stays set up, as in a real image.
         let _uart = uart;
@@ -60,11 +70,17 @@ fn main() -> ! {
         bench::run(&mut meter);
         #[cfg(feature = "bench-identifier")]
         bench_identifier::run(&mut meter);
+        #[cfg(feature = "bench-system")]
+        bench_system::run(&mut meter);
         defmt::info!("stack: peak {=usize} bytes since reset", stack::peak_used());
         platform::exit(platform::EXIT_SUCCESS)
     }
 
-    #[cfg(not(any(feature = "bench", feature = "bench-identifier")))]
+    #[cfg(not(any(
+        feature = "bench",
+        feature = "bench-identifier",
+        feature = "bench-system"
+    )))]
     {
         let (mut uart, mut meter) = (uart, meter);
         app::run(&mut uart, &mut meter)

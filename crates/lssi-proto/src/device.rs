@@ -1,5 +1,7 @@
 //! Device → host messages.
 
+#[cfg(feature = "system")]
+use crate::SystemSnapshot;
 use crate::size::{max_of, vec_max_size};
 use crate::{MAX_LOG, MAX_SOLUTIONS, MAX_TERMS, ModelPart};
 use postcard::experimental::max_size::MaxSize;
@@ -7,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 /// A message from the device to the host.
 ///
-/// The variant order is the wire discriminant (0..=6); see the README before changing it.
+/// The variant order is the wire discriminant (0..=7); see the README before changing it.
 ///
 /// What the device sends when is `lssi-device`'s contract (see its crate docs): every
 /// host command gets exactly one reply, except [`HostMsg::Query`](crate::HostMsg::Query),
@@ -102,6 +104,10 @@ pub enum DeviceMsg {
     },
     /// Answers [`HostMsg::ModelPart`](crate::HostMsg::ModelPart). Since version 5.
     ModelPart(ModelPart),
+    /// A system's current model (every equation), sent where a single equation's
+    /// [`DeviceMsg::Model`] would be once a `ConfigureSystem` is in force. Since version 6.
+    #[cfg(feature = "system")]
+    SystemModel(SystemSnapshot),
 }
 
 impl MaxSize for DeviceMsg {
@@ -121,6 +127,8 @@ impl MaxSize for DeviceMsg {
             + f32::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
         ModelPart::POSTCARD_MAX_SIZE,
+        #[cfg(feature = "system")]
+        SystemSnapshot::POSTCARD_MAX_SIZE,
     ]);
 }
 

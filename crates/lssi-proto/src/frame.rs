@@ -21,6 +21,8 @@ use crate::{
     BatchRef, CRC_LEN, DeviceMsg, Error, HostCommand, HostMsg, Message, PROTOCOL_VERSION,
     WireConfig,
 };
+#[cfg(feature = "system")]
+use crate::{SystemBatch, WireSystemConfig};
 use core::marker::PhantomData;
 use crc::{CRC_32_ISCSI, Crc};
 use postcard::ser_flavors::crc::CrcModifier;
@@ -116,6 +118,10 @@ pub fn decode_host_frame(frame: &mut [u8]) -> Result<HostCommand<'_>, Error> {
         HostShape::Compact(batch) if batch.is_well_formed() => HostCommand::Compact(batch),
         HostShape::Compact(_) => return Err(Error::Decode),
         HostShape::ModelPart { offset } => HostCommand::ModelPart { offset },
+        #[cfg(feature = "system")]
+        HostShape::ConfigureSystem(config) => HostCommand::ConfigureSystem(config),
+        #[cfg(feature = "system")]
+        HostShape::SystemSamples(batch) => HostCommand::SystemSamples(batch),
     })
 }
 
@@ -145,6 +151,10 @@ fn checked_payload(frame: &mut [u8]) -> Result<&[u8], Error> {
 /// same variants in the same order, so postcard accepts exactly what it accepts for
 /// [`HostMsg`].
 #[derive(Deserialize)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a system batch is copied out of the frame (12 samples, 0.6 KiB), once a frame"
+)]
 enum HostShape<'a> {
     Hello {
         protocol_version: u16,
@@ -158,6 +168,10 @@ enum HostShape<'a> {
     ModelPart {
         offset: u16,
     },
+    #[cfg(feature = "system")]
+    ConfigureSystem(WireSystemConfig),
+    #[cfg(feature = "system")]
+    SystemSamples(SystemBatch),
 }
 
 /// Reassembles frames from a byte stream cut into any chunks, with an `N`-byte buffer.

@@ -1,12 +1,14 @@
 //! Host → device messages.
 
 use crate::{BatchRef, CompactBatch, CompactRef, SampleBatch, SampleEncoding};
+#[cfg(feature = "system")]
+use crate::{SystemBatch, WireSystemConfig};
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 /// A message from the host to the device.
 ///
-/// The variant order is the wire discriminant (0..=6); see the README before changing it.
+/// The variant order is the wire discriminant (0..=8); see the README before changing it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[allow(
@@ -39,12 +41,24 @@ pub enum HostMsg {
         /// Offset in the snapshot's postcard bytes.
         offset: u16,
     },
+    /// Sets up (or replaces) a system's identifier (x'' and one equation per electrical
+    /// channel, `lssi_core::SystemIdentifier`); acked or naked as `Configure`. Since version 6.
+    #[cfg(feature = "system")]
+    ConfigureSystem(WireSystemConfig),
+    /// Samples for a system's identifier, numbered and applied like [`HostMsg::Samples`].
+    /// Since version 6.
+    #[cfg(feature = "system")]
+    SystemSamples(SystemBatch),
 }
 
 /// A [`HostMsg`] decoded in place by [`decode_host_frame`](crate::decode_host_frame): a
 /// sample batch stays in the received frame's bytes ([`BatchRef`]) instead of being copied
 /// into a [`SampleBatch`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a system batch is copied out of the frame (12 samples, 0.6 KiB): no allocator to box into"
+)]
 pub enum HostCommand<'a> {
     /// [`HostMsg::Hello`].
     Hello {
@@ -66,12 +80,20 @@ pub enum HostCommand<'a> {
         /// Offset in the snapshot's postcard bytes.
         offset: u16,
     },
+    /// [`HostMsg::ConfigureSystem`].
+    #[cfg(feature = "system")]
+    ConfigureSystem(WireSystemConfig),
+    /// [`HostMsg::SystemSamples`] (copied out of the frame: at most 12 samples).
+    #[cfg(feature = "system")]
+    SystemSamples(SystemBatch),
 }
 
 impl HostCommand<'_> {
     /// The same message as a [`HostMsg`] (copies a batch's samples out).
     pub fn to_msg(&self) -> HostMsg {
         match *self {
+            #[cfg(feature = "system")]
+            HostCommand::SystemSamples(ref batch) => HostMsg::SystemSamples(batch.clone()),
             HostCommand::Hello { protocol_version } => HostMsg::Hello { protocol_version },
             HostCommand::Configure(config) => HostMsg::Configure(config),
             HostCommand::Samples(batch) => HostMsg::Samples(batch.to_batch()),
@@ -79,6 +101,8 @@ impl HostCommand<'_> {
             HostCommand::Reset => HostMsg::Reset,
             HostCommand::Compact(batch) => HostMsg::Compact(batch.to_batch()),
             HostCommand::ModelPart { offset } => HostMsg::ModelPart { offset },
+            #[cfg(feature = "system")]
+            HostCommand::ConfigureSystem(config) => HostMsg::ConfigureSystem(config),
         }
     }
 }

@@ -49,6 +49,8 @@ mod error;
 mod frame;
 mod host;
 pub mod size;
+#[cfg(feature = "system")]
+mod system;
 
 pub use batch::{BatchRef, BatchSamples, Channels, SampleBatch, Samples, WireSample};
 pub use compact::{
@@ -68,6 +70,11 @@ pub use frame::{
 pub use host::{HostCommand, HostMsg, PolyFamily, WireChannels, WireConfig, WireDuty, WireLibrary};
 /// postcard's worst-case size trait, implemented by every wire type.
 pub use postcard::experimental::max_size::MaxSize;
+#[cfg(feature = "system")]
+pub use system::{
+    MAX_ELECTRICAL, MAX_EQUATIONS, MAX_SYSTEM_BATCH, StateTermCode, SystemBatch, SystemEquation,
+    SystemSnapshot, SystemWireSample, WireElectrical, WireSystemConfig, WireTarget,
+};
 
 /// The protocol version, sent in [`HostMsg::Hello`] and [`DeviceMsg::HelloReply`].
 ///

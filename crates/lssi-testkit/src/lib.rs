@@ -20,6 +20,7 @@
 //! assert_eq!(a.gauss(), b.gauss());
 //! ```
 
+pub mod harvester;
 pub mod ode;
 pub mod systems;
 #[cfg(feature = "wire")]

@@ -170,6 +170,21 @@ pub fn entry_json(entry: &Entry, session: &(Config, bool)) -> Value {
     object
 }
 
+/// A system snapshot's equations, one line each (`x'' = …`, `V' = …`), as lssi-core
+/// writes them; or why the snapshot cannot be read.
+pub fn system_equations(snapshot: &lssi_proto::SystemSnapshot) -> Vec<String> {
+    match lssi_device::system::system_model_from_snapshot::<{ lssi_proto::MAX_TERMS }>(snapshot) {
+        Ok(model) => (0..model.equations.len())
+            .map(|k| {
+                let mut line = String::new();
+                let _ = model.write_equation(k, 6, &mut line);
+                line
+            })
+            .collect(),
+        Err(error) => vec![format!("(unreadable: {error})")],
+    }
+}
+
 /// The JSON object of one device message (as `lssi log --json` and `lssi monitor --json` print it).
 pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
     match message {
@@ -193,6 +208,12 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             "kind": "model",
             "cause": cause(snapshot),
             "report": snapshot_report(snapshot, session),
+        }),
+        DeviceMsg::SystemModel(snapshot) => json!({
+            "kind": "system_model",
+            "cause": format!("{:?}", snapshot.cause).to_lowercase(),
+            "samples": snapshot.samples,
+            "equations": system_equations(snapshot),
         }),
         DeviceMsg::Health {
             samples,
@@ -296,6 +317,15 @@ pub fn render_text(entries: &[Entry]) -> String {
                 } => out.push_str(&format!(
                     "{at}hello: protocol {protocol_version}, {max_terms} terms, window {window_capacity}, batches of {max_batch}\n"
                 )),
+                DeviceMsg::SystemModel(snapshot) => {
+                    out.push_str(&format!(
+                        "{at}system model ({:?}, {} samples):\n",
+                        snapshot.cause, snapshot.samples
+                    ));
+                    for line in system_equations(snapshot) {
+                        out.push_str(&format!("{at}  {line}\n"));
+                    }
+                }
                 DeviceMsg::Model(snapshot) => {
                     let equation = match report_from_snapshot(snapshot, &session.0, session.1) {
                         Ok(report) => identify::render(&report)

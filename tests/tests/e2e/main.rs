@@ -5,3 +5,4 @@ mod qemu;
 mod replay;
 mod replay_sweep;
 mod standalone_qemu;
+mod system_qemu;

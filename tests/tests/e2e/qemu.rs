@@ -74,14 +74,14 @@ fn missing_prerequisite(elf: &Path) -> Option<String> {
 }
 
 /// QEMU, killed when dropped; its stdout (the defmt stream) goes to a file.
-struct Qemu {
+pub(crate) struct Qemu {
     child: Child,
     log: PathBuf,
     elf: PathBuf,
 }
 
 impl Qemu {
-    fn start(elf: &Path, socket: &Path, log: &Path) -> Self {
+    pub(crate) fn start(elf: &Path, socket: &Path, log: &Path) -> Self {
         let stdout = std::fs::File::create(log).expect("log file");
         // QEMU itself, not under `timeout`: killing a `timeout` would orphan QEMU. Every
         // wait for a reply is bounded instead, and `Drop` kills QEMU whatever happens.
@@ -134,14 +134,14 @@ impl Drop for Qemu {
 }
 
 /// The host's end of the link.
-struct Link {
+pub(crate) struct Link {
     stream: UnixStream,
     decoder: DeviceFrameDecoder,
     pending: std::collections::VecDeque<DeviceMsg>,
 }
 
 impl Link {
-    fn connect(socket: &Path) -> Self {
+    pub(crate) fn connect(socket: &Path) -> Self {
         let start = Instant::now();
         let stream = loop {
             match UnixStream::connect(socket) {
@@ -166,7 +166,7 @@ impl Link {
         }
     }
 
-    fn send(&mut self, message: &HostMsg) {
+    pub(crate) fn send(&mut self, message: &HostMsg) {
         let mut frame = [0u8; MAX_HOST_FRAME_LEN];
         let len = encode(message, &mut frame).expect("the message fits a frame");
         self.stream
@@ -174,7 +174,7 @@ impl Link {
             .expect("write to the UART socket");
     }
 
-    fn receive(&mut self) -> DeviceMsg {
+    pub(crate) fn receive(&mut self) -> DeviceMsg {
         let start = Instant::now();
         loop {
             if let Some(m) = self.pending.pop_front() {
@@ -221,7 +221,7 @@ fn host_model(recording: &Recording, config: lssi_core::Config) -> Model<f32, TE
 }
 
 /// The firmware ELF; a missing QEMU or image fails the (ignored, so asked-for) test.
-fn qemu_firmware() -> PathBuf {
+pub(crate) fn qemu_firmware() -> PathBuf {
     let elf = firmware_elf();
     if let Some(reason) = missing_prerequisite(&elf) {
         panic!("{reason} (bash scripts/ci-qemu.sh installs QEMU and builds the image)");

@@ -45,9 +45,11 @@ pub const MAX_COUPLING_ORDER: u8 = 3;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Electrical {
     /// The voltage across the load, `V` (a piezoelectric harvester's; equation V' = …).
-    Voltage,
+    // Discriminants from 1, so that `None::<Electrical>` is the byte 0: an empty
+    // `SystemSlot` is all zero bits and a device's static of it lies in `.bss`.
+    Voltage = 1,
     /// The current through the coil or load, `i` (an electromagnetic harvester's; i' = …).
-    Current,
+    Current = 2,
 }
 
 impl Electrical {

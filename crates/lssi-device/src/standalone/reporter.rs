@@ -375,6 +375,12 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             HostMsg::Samples(batch) => self.nak(link, batch.seq, NakReason::Busy),
             HostMsg::Compact(batch) => self.nak(link, batch.seq, NakReason::Busy),
             HostMsg::ModelPart { .. } => self.nak(link, CONTROL_SEQ, NakReason::Busy),
+            // This instrument identifies one equation (see the `system` engine for two).
+            #[allow(
+                unreachable_patterns,
+                reason = "lssi-proto's system messages, when present"
+            )]
+            _ => self.nak(link, CONTROL_SEQ, NakReason::BadConfig),
         }
     }
 

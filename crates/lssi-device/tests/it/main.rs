@@ -6,3 +6,5 @@ mod fuzz;
 mod loopback;
 mod sizes;
 mod standalone;
+#[cfg(feature = "system")]
+mod system;

@@ -310,7 +310,10 @@ pub struct SystemIdentifier<
     sqrt_lambda: T,
     sqrt_lambda_blocks: T,
     counters: Counters,
-    model: Option<SystemModel<T, P, E>>,
+    /// The latest model, valid when `has_model` (not an `Option`: its `None` would be a
+    /// non-zero niche byte, and an empty slot must be all zero bits to lie in `.bss`).
+    model: SystemModel<T, P, E>,
+    has_model: bool,
 }
 
 impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
@@ -367,7 +370,16 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
                 gated: 0,
                 screenings: 0,
             },
-            model: None,
+            model: SystemModel {
+                terms: heapless::Vec::new(),
+                electrical: [None; MAX_ELECTRICAL],
+                equations: heapless::Vec::new(),
+                omega: 0.0,
+                samples: 0,
+                rejected: 0,
+                rows: 0,
+            },
+            has_model: false,
         }
     }
 
@@ -437,7 +449,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         self.sqrt_lambda = T::from_f64(sqrt_lambda);
         self.sqrt_lambda_blocks = T::from_f64(power(sqrt_lambda, blocks_old));
         self.counters = Counters::default();
-        self.model = None;
+        self.has_model = false;
         self.config = config;
         Ok(())
     }
@@ -459,7 +471,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
 
     /// The latest model, once a screening has run.
     pub fn model(&self) -> Option<&SystemModel<T, P, E>> {
-        self.model.as_ref()
+        self.has_model.then_some(&self.model)
     }
 
     /// Samples between a sample arriving and its regression row (the fixed lag).
@@ -751,6 +763,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             block_len,
             counters,
             model,
+            has_model,
             ..
         } = self;
         let Store::Halves([a_all, b_all]) = &*store else {
@@ -761,15 +774,14 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         let to_a = (*regression_rows / *block_len).is_multiple_of(2);
         // The model is written in place (a second one on the stack would be 1 KB with f32,
         // P = 16, E = 2); A and B are one pair, as in the single-equation screening.
-        let model = model.insert(SystemModel {
-            terms: heapless::Vec::new(),
-            electrical: config.electrical,
-            equations: heapless::Vec::new(),
-            omega: config.base.omega,
-            samples: counters.accepted,
-            rejected: counters.rejected(),
-            rows: counters.rows,
-        });
+        *has_model = true;
+        model.terms.clear();
+        model.electrical = config.electrical;
+        model.equations.clear();
+        model.omega = config.base.omega;
+        model.samples = counters.accepted;
+        model.rejected = counters.rejected();
+        model.rows = counters.rows;
         for &t in library.terms() {
             let _ = model.terms.push(t);
         }
@@ -872,6 +884,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             sqrt_lambda_blocks,
             counters,
             model: _,
+            has_model: _,
         } = self;
         s.config = *config;
         s.library.clone_from(library);
