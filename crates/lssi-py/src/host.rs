@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use lssi_core::{Config, Identifier, Real, Sample, Term};
 pub use lssi_host::identify::Options;
+pub use lssi_host::identify::Reference;
 pub use lssi_host::identify::Report;
 use lssi_host::identify::pipeline::{self, Failure, Refine};
 use lssi_host::identify::refine::Chosen;
@@ -94,8 +95,10 @@ pub fn read(path: &str) -> Result<Columns, String> {
     })
 }
 
-/// `lssi identify`'s configuration for these columns and options, and whether Ω was estimated.
-pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), String> {
+/// `lssi identify`'s configuration for these columns and options, whether Ω was estimated,
+/// and the references it subtracts from x and v ([`Reference`]: the configuration is the
+/// shifted recording's, as the command's).
+pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool, Reference), String> {
     c.check()?;
     let r = recording(Columns {
         name: c.name.clone(),
@@ -104,7 +107,11 @@ pub fn configure(c: &Columns, options: &Options) -> Result<(Config, bool), Strin
         v: c.v.clone(),
         u: c.u.clone(),
     });
-    identify::configure(&r, options).map_err(|e| e.0)
+    let reference = Reference::of(&r);
+    let shifted = reference.shifted(&r);
+    let (config, estimated) =
+        identify::configure(shifted.as_ref().unwrap_or(&r), options).map_err(|e| e.0)?;
+    Ok((config, estimated, reference))
 }
 
 /// What `lssi identify` reports for a recording, and what the package needs besides.
@@ -119,6 +126,8 @@ pub struct Fitted {
     pub config: Config,
     /// The reported model, to simulate.
     pub model: SimModel,
+    /// The references subtracted from x and v before identifying ([`Reference`]).
+    pub reference: Reference,
 }
 
 /// `lssi identify` on columns through the command's one pipeline
@@ -129,7 +138,11 @@ pub struct Fitted {
 pub fn fit(c: Columns, options: &Options, refine: bool) -> Result<Fitted, String> {
     c.check()?;
     let r = recording(c);
-    let (config, _) = identify::configure(&r, options).map_err(|e| e.0)?;
+    // The configuration of the recording less its references, as the pipeline's.
+    let reference = Reference::of(&r);
+    let shifted = reference.shifted(&r);
+    let (config, _) =
+        identify::configure(shifted.as_ref().unwrap_or(&r), options).map_err(|e| e.0)?;
     let refine = if refine {
         Refine::Yes
     } else {
@@ -145,6 +158,7 @@ pub fn fit(c: Columns, options: &Options, refine: bool) -> Result<Fitted, String
         warnings: done.warnings,
         config,
         model,
+        reference,
     })
 }
 
@@ -260,4 +274,75 @@ pub fn simulate(
 ) -> (Vec<f64>, Vec<f64>) {
     let s = simulate::simulate(model, t, u, (x0, v0), 4);
     (s.x, s.v)
+}
+
+/// A recording with an electrical column (`V` or `i`), read as `lssi identify` reads it.
+pub use lssi_host::system::SystemData;
+/// A system's report (`lssi identify --json` for a recording with an electrical column).
+pub use lssi_host::system::SystemReport;
+/// A system model, ready to simulate.
+pub use lssi_host::system::simulate::SystemSim;
+
+/// Reads `path` as a system when it has an electrical column (`V` or `i`), as `lssi
+/// identify FILE` decides; `Ok(None)`: a single-equation recording.
+pub fn read_system(path: &str) -> Result<Option<SystemData>, String> {
+    lssi_host::system::read_if_system(
+        std::path::Path::new(path),
+        &ColumnNames::default(),
+        &lssi_host::system::ElectricalColumns::default(),
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// What `lssi identify FILE` reports for a system, the model to simulate, and the bound on
+/// the free run (`lssi simulate`'s: the RMS of the recording's x, plus 1).
+pub struct SystemFitted {
+    /// The report (`--json`, the text report).
+    pub report: SystemReport,
+    /// The reported model.
+    pub model: SystemSim,
+    /// The divergence bound of a free run.
+    pub bound: f64,
+}
+
+/// `lssi identify FILE` for a system, as the command runs it
+/// ([`lssi_host::system::identify_command`] without `--load-ohms`, coupling order 1).
+pub fn fit_system(data: &SystemData, options: &Options) -> Result<SystemFitted, String> {
+    use lssi_host::system;
+    let (config, estimated) = system::configure(data, options, 1).map_err(|e| e.to_string())?;
+    let report = if options.f32 {
+        system::run::<f32>(data, config, estimated)
+    } else {
+        system::run::<f64>(data, config, estimated)
+    }
+    .map_err(|e| e.to_string())?;
+    let model = SystemSim::of_report(&report).ok_or_else(|| {
+        "internal error: a term of the system's report is not one lssi can simulate; please report it."
+            .to_string()
+    })?;
+    let bound = system::simulate::rms(&data.recording.x) + 1.0;
+    Ok(SystemFitted {
+        report,
+        model,
+        bound,
+    })
+}
+
+/// A system model's free run on the grid `t` from `start` (x, v, then the electrical
+/// states), driven by `u` (empty: 0): one column per state, NaN after a divergence.
+pub fn simulate_system(
+    model: &SystemSim,
+    t: &[f64],
+    u: &[f64],
+    start: &[f64],
+    bound: f64,
+) -> Vec<Vec<f64>> {
+    let mut s = [0.0; 4];
+    for (k, q) in start.iter().enumerate().take(4) {
+        s[k] = *q;
+    }
+    let states = model.run(t, u, s, bound);
+    (0..start.len())
+        .map(|k| states.iter().map(|s| s[k]).collect())
+        .collect()
 }

@@ -20,7 +20,7 @@ use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
-use host::{Columns, HostIdentifier, Options, Report, SimModel, Summary};
+use host::{Columns, HostIdentifier, Options, Reference, Report, SimModel, Summary};
 
 /// What went wrong on the Rust side: bad input (a sentence for a `ValueError`) or a panic
 /// (a bug: a sentence for a `RuntimeError`).
@@ -145,6 +145,9 @@ struct Fit {
     warnings: Vec<String>,
     /// The reported model (the refined one when it was taken), to simulate.
     model: SimModel,
+    /// The references subtracted from x and v before identifying (a stream like this fit
+    /// subtracts them too).
+    reference: Reference,
 }
 
 /// Two NumPy arrays: a simulation's x and v.
@@ -297,6 +300,7 @@ fn fit(
         config: fitted.config,
         warnings: fitted.warnings,
         model: fitted.model,
+        reference: fitted.reference,
     })
 }
 
@@ -319,6 +323,120 @@ fn read_recording<'py>(
         c.v.map(|v| PyArray1::from_vec(py, v)),
         c.u.map(|u| PyArray1::from_vec(py, u)),
     ))
+}
+
+/// A system's model (a recording with an electrical column): what `lssi identify` reports
+/// for it, and the model to simulate.
+#[pyclass(module = "lssi._lssi", frozen)]
+struct SystemFit {
+    fitted: host::SystemFitted,
+}
+
+#[pymethods]
+impl SystemFit {
+    /// The `lssi identify --json` object, as a string.
+    fn json(&self) -> String {
+        self.fitted.report.json()
+    }
+
+    /// The `lssi identify` text report.
+    fn text(&self) -> String {
+        self.fitted.report.render()
+    }
+
+    /// The states, in order: `x`, `v`, then the electrical ones (`V`, `i`).
+    fn states(&self) -> Vec<String> {
+        self.fitted.report.states.clone()
+    }
+
+    /// Each equation's target (`x''`, `V'`, `i'`) and its terms with their coefficients.
+    fn equations(&self) -> Vec<(String, Vec<(String, f64)>)> {
+        self.fitted
+            .report
+            .equations
+            .iter()
+            .map(|e| (e.target.clone(), named(&e.terms)))
+            .collect()
+    }
+
+    /// Whether the model has an excitation term `u` (a simulation needs u).
+    fn uses_input(&self) -> bool {
+        self.fitted.model.uses_input()
+    }
+
+    /// Free run of the model on the grid `t` from `x0` (one value per state, in `states()`
+    /// order); `u` the excitation on the same grid. One array per state.
+    #[pyo3(signature = (t, x0, u=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArray1<'py, f64>,
+        x0: Vec<f64>,
+        u: Option<PyReadonlyArray1<'py, f64>>,
+    ) -> PyResult<Vec<Bound<'py, PyArray1<f64>>>> {
+        let t = t.as_array().to_vec();
+        let u = vector(u);
+        let fitted = &self.fitted;
+        let states = fitted.report.states.len();
+        let columns = py.detach(|| {
+            guarded("simulating the system", || {
+                if x0.len() != states {
+                    return Err(format!(
+                        "x0 has {} values but the model has {states} states.",
+                        x0.len()
+                    ));
+                }
+                if let Some(u) = &u
+                    && u.len() != t.len()
+                {
+                    return Err(format!("u has {} samples but t has {}.", u.len(), t.len()));
+                }
+                if u.is_none() && fitted.model.uses_input() {
+                    return Err("u: the model has an excitation term u, so a simulation needs u on the same grid as t.".into());
+                }
+                let u = u.unwrap_or_default();
+                Ok(host::simulate_system(
+                    &fitted.model,
+                    &t,
+                    &u,
+                    &x0,
+                    fitted.bound,
+                ))
+            })
+        })?;
+        Ok(columns
+            .into_iter()
+            .map(|c| PyArray1::from_vec(py, c))
+            .collect())
+    }
+}
+
+/// `lssi identify FILE` when the file is a system's recording (it has an electrical column,
+/// `V` or `i`): its model; `None` for a single-equation recording.
+#[pyfunction]
+#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory))]
+#[allow(clippy::too_many_arguments)]
+fn identify_system(
+    py: Python<'_>,
+    path: &str,
+    omega: Option<f64>,
+    harmonics: u8,
+    poly_order: u8,
+    family: &str,
+    f32: bool,
+    smoothing: bool,
+    memory: Option<f64>,
+) -> PyResult<Option<SystemFit>> {
+    let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
+    let fitted = py.detach(|| {
+        guarded("identifying the system", || {
+            match host::read_system(path)? {
+                Some(data) => host::fit_system(&data, &options).map(Some),
+                None => Ok(None),
+            }
+        })
+    })?;
+    Ok(fitted.map(|fitted| SystemFit { fitted }))
 }
 
 /// Panics inside the guard, for the tests: what a bug in the Rust code becomes in Python
@@ -344,6 +462,9 @@ enum Precision {
 struct RawStream {
     identifier: Precision,
     omega_estimated: bool,
+    /// The references subtracted from x and v before they are fed in, added back to the
+    /// model's offsets (as `lssi identify` does).
+    reference: Reference,
     /// Set when a call panicked: the identifier may be half-updated, so it is not used again.
     broken: bool,
 }
@@ -381,6 +502,7 @@ impl RawStream {
             fit.config,
             fit.report.precision == "f32",
             fit.omega_estimated,
+            fit.reference,
         )
     }
 
@@ -405,12 +527,12 @@ impl RawStream {
     ) -> PyResult<Self> {
         let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
         let columns = columns("stream".into(), t, x, v, u);
-        let (config, estimated) = py.detach(|| {
+        let (config, estimated, reference) = py.detach(|| {
             guarded("configuring the stream", || {
                 host::configure(&columns, &options)
             })
         })?;
-        Self::with(config, f32, estimated)
+        Self::with(config, f32, estimated, reference)
     }
 
     /// The channels the identifier takes besides x: (velocity v, excitation u).
@@ -434,10 +556,14 @@ impl RawStream {
         u: Option<PyReadonlyArray1<'_, f64>>,
     ) -> PyResult<usize> {
         self.usable()?;
+        let reference = self.reference;
         let (t, x, v, u) = (
             t.as_array().to_vec(),
-            x.as_array().to_vec(),
-            vector(v),
+            x.as_array()
+                .iter()
+                .map(|x| x - reference.x)
+                .collect::<Vec<_>>(),
+            vector(v).map(|v| v.iter().map(|v| v - reference.v).collect::<Vec<_>>()),
             vector(u),
         );
         let (velocity, input) = self.channels();
@@ -468,6 +594,7 @@ impl RawStream {
     fn model(&mut self, py: Python<'_>) -> PyResult<Fit> {
         self.usable()?;
         let estimated = self.omega_estimated;
+        let reference = self.reference;
         let identifier = &mut self.identifier;
         let result = py.detach(|| {
             guarded("screening the stream", || {
@@ -479,6 +606,8 @@ impl RawStream {
                         host::report_now(id, estimated, "stream").map(|r| (r, *id.config()))
                     }
                 }?;
+                let mut report = report;
+                reference.restore(&mut report);
                 let model = host::reported_model(&report, &config)?;
                 Ok((report, config, model))
             })
@@ -494,6 +623,7 @@ impl RawStream {
             config,
             omega_estimated: estimated,
             model,
+            reference,
         })
     }
 }
@@ -512,7 +642,12 @@ fn channel(name: &str, what: &str, configured: bool, given: bool) -> Result<(), 
 }
 
 impl RawStream {
-    fn with(config: Config, f32: bool, omega_estimated: bool) -> PyResult<Self> {
+    fn with(
+        config: Config,
+        f32: bool,
+        omega_estimated: bool,
+        reference: Reference,
+    ) -> PyResult<Self> {
         let identifier = if f32 {
             Precision::F32(new_identifier::<f32>(config)?)
         } else {
@@ -521,6 +656,7 @@ impl RawStream {
         Ok(Self {
             identifier,
             omega_estimated,
+            reference,
             broken: false,
         })
     }
@@ -547,8 +683,10 @@ fn _lssi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }));
     m.add_class::<Fit>()?;
     m.add_class::<RawStream>()?;
+    m.add_class::<SystemFit>()?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(read_recording, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_system, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
 }

@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import numbers
+from collections.abc import Mapping
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -287,6 +288,8 @@ class Model:
         self._data: Optional[Tuple] = None
         # The date and time t = 0 stands for, when the fit's t held dates and times.
         self._t_origin: Optional[np.datetime64] = None
+        # The file of a system's model (a recording with an electrical column), else None.
+        self._system_path: Optional[str] = None
 
     def _options(self) -> Tuple:
         return (
@@ -318,6 +321,7 @@ class Model:
 
     def _run(self, name: str, t, x, v, u) -> None:
         self._fit = _lssi.fit(t, x, v, u, *self._options(), refine=self.refine, name=name)
+        self._system_path = None
         self._data = (name, t, x, v, u)
 
     def _fitted(self) -> Fit:
@@ -325,10 +329,41 @@ class Model:
             raise ValueError("the model is not fitted yet: call fit() first.")
         return self._fit
 
+    def _single(self, method: str) -> Fit:
+        """The single-equation fit; ValueError naming ``method`` for a system's model."""
+        fit = self._fitted()
+        if self._system_path is not None:
+            raise ValueError(
+                f"{method}() is for a single equation; this model is a system "
+                f"({', '.join(self.equations())}): use equations() and to_json()."
+            )
+        return fit
+
+    def is_system(self) -> bool:
+        """Whether the model is a system of equations (a recording with an electrical
+        column, ``V`` or ``i``)."""
+        self._fitted()
+        return self._system_path is not None
+
+    def states(self) -> List[str]:
+        """The states: ``["x", "v"]``, and for a system its electrical ones (``V``, ``i``)."""
+        fit = self._fitted()
+        return list(fit.states()) if self._system_path is not None else ["x", "v"]
+
+    def equations(self) -> Dict[str, Dict[str, float]]:
+        """Each equation's active terms and coefficients, by target: ``{"x''": {"x": …},
+        "V'": {"V": …, "v": …}}`` (a single equation: ``{"x''": …}``, its active terms)."""
+        fit = self._fitted()
+        if self._system_path is not None:
+            return {target: dict(terms) for target, terms in fit.equations()}
+        return {"x''": dict(fit.terms())}
+
     # -- results -------------------------------------------------------------------------
     def equation(self) -> str:
         """The reported equation as one line, ``lssi identify``'s first (with ± a standard
         error on each coefficient when refined)."""
+        if self._system_path is not None:
+            return "\n".join(self._fitted().text().splitlines()[: len(self.equations())])
         return self._fitted().equation()
 
     def print(self, unit: str = "[x]") -> None:
@@ -336,11 +371,14 @@ class Model:
         x in ``unit`` (its ``--unit``)."""
         if not isinstance(unit, str):
             raise TypeError(f"unit must be a string, not {unit!r}.")
+        if self._system_path is not None:
+            print(self._fitted().text(), end="")
+            return
         print(self._fitted().text(unit), end="")
 
     def feature_names(self) -> List[str]:
         """The library's term names, in order (``1``, ``x``, ``v``, ``x^2``, …, ``cos(21.4t)``)."""
-        return self._fitted().feature_names()
+        return self._single("feature_names").feature_names()
 
     def _dense(self, terms) -> Dict[str, float]:
         active = dict(terms)
@@ -349,18 +387,18 @@ class Model:
     def coefficients(self) -> Dict[str, float]:
         """Every library term's coefficient in physical units (0 for inactive terms), of the
         reported model: the refined one when it was taken (``report()["model"]`` says)."""
-        return self._dense(self._fitted().terms())
+        return self._dense(self._single("coefficients").terms())
 
     def streaming_coefficients(self) -> Dict[str, float]:
         """As ``coefficients()``, of the streaming identifier's model (what a device computes
         for the same samples; the JSON's ``streaming_terms``)."""
-        return self._dense(self._fitted().streaming_terms())
+        return self._dense(self._single("streaming_coefficients").streaming_terms())
 
     def standard_errors(self) -> Optional[Dict[str, float]]:
         """The standard error of each active term's coefficient when the reported model is the
         refined one (NaN where it could not be computed); None for the streaming model,
         which has none."""
-        se = self._fitted().standard_errors()
+        se = self._single("standard_errors").standard_errors()
         return None if se is None else dict(se)
 
     def to_json(self) -> str:
@@ -376,7 +414,13 @@ class Model:
     def simulate(self, x0, t, u=None) -> Tuple[np.ndarray, np.ndarray]:
         """Free run of the reported model from ``x0`` (x, or (x, v)) on the times ``t``
         (seconds, or dates and times as for ``fit``); ``u`` the excitation on the same grid,
-        needed when the model has a ``u`` term. Returns (x, v); NaN after a divergence."""
+        needed when the model has a ``u`` term. Returns (x, v); NaN after a divergence.
+
+        A system's model (``is_system()``) takes ``x0`` as a mapping of every state name to
+        its initial value (``{"x": …, "v": …, "V": …}``, ``states()``) and returns a dict of
+        state names to arrays, in the recording's units (``lssi simulate``'s free run)."""
+        if self._system_path is not None:
+            return self._simulate_system(x0, t, u)
         fit = self._fitted()
         if np.ndim(x0) == 0:
             x_init, v_init = x0, 0.0
@@ -395,6 +439,48 @@ class Model:
         u = self._input(u, t.shape[0], "simulate")
         return fit.simulate(t, x_init, v_init, u)
 
+    def _simulate_system(self, x0, t, u) -> Dict[str, np.ndarray]:
+        fit = self._fitted()
+        states = self.states()
+        if not isinstance(x0, Mapping):
+            raise TypeError(
+                f"x0 must be a mapping of the system's states {states} to initial values "
+                f"(e.g. {{'x': 0.0, 'v': 0.0, ...}}), not {x0!r}."
+            )
+        missing = [name for name in states if name not in x0]
+        if missing:
+            raise ValueError(
+                f"x0 has no initial value for the state(s) {missing}; the system's states are {states}."
+            )
+        unknown = [name for name in x0 if name not in states]
+        if unknown:
+            raise ValueError(
+                f"x0 names {unknown}, which are not states of this system (its states are {states})."
+            )
+        start = []
+        for name in states:
+            try:
+                value = float(x0[name])
+            except (TypeError, ValueError):
+                raise TypeError(f"x0[{name!r}] must be a number, not {x0[name]!r}.") from None
+            if not np.isfinite(value):
+                raise ValueError(f"x0[{name!r}] must be finite, not {value!r}.")
+            start.append(value)
+        t, _ = _times(t, origin=self._t_origin)
+        _increasing(t)
+        if u is None:
+            if fit.uses_input():
+                raise ValueError(
+                    "u: the model has an excitation term u, so simulate needs the excitation u "
+                    "on the same grid as t."
+                )
+        else:
+            u = _column("u", u)
+            if u.shape[0] != t.shape[0]:
+                raise ValueError(f"u has {u.shape[0]} samples but t has {t.shape[0]}.")
+        columns = fit.simulate(t, start, u)
+        return dict(zip(states, columns))
+
     def _input(self, u, n: int, method: str) -> Optional[np.ndarray]:
         if u is None:
             if self._fitted().uses_input():
@@ -409,6 +495,7 @@ class Model:
     def score(self, x, t, u=None) -> float:
         """Free-run fit of the measured ``x``: 1 − NRMSE² (1 is perfect, 0 no better than the
         mean, negative worse), simulated from x[0] with v[0] from a first difference."""
+        self._single("score")
         t, x, _, u, _ = _columns(x, t, None, u, minimum=3, origin=self._t_origin)
         u = self._input(u, t.shape[0], "score")
         v0 = (x[1] - x[0]) / (t[1] - t[0])
@@ -423,13 +510,16 @@ class Model:
     def stream(self) -> "Stream":
         """A ``Stream`` with this fit's configuration: fed the same samples, it gives the same
         streaming model as the fit (``streaming_coefficients()``)."""
+        self._single("stream")
         return Stream(like=self)
 
     # -- pickling ------------------------------------------------------------------------
     def __getstate__(self) -> Dict[str, Any]:
         state: Dict[str, Any] = {"version": _PICKLE_VERSION, "options": self._option_dict(),
                                  "fit": None, "t_origin": self._t_origin}
-        if self._fit is not None:
+        if self._system_path is not None:
+            state["system"] = dict(path=self._system_path, json=self.to_json())
+        elif self._fit is not None:
             if self._data is None:
                 raise TypeError(
                     "a Stream's model keeps none of the samples it came from, so it cannot be "
@@ -447,6 +537,16 @@ class Model:
             )
         self.__init__(**state["options"])
         self._t_origin = state.get("t_origin")
+        system = state.get("system")
+        if system is not None:
+            fitted = identify(system["path"], **state["options"])
+            self._fit, self._system_path = fitted._fit, fitted._system_path
+            if self._system_path is None or self.to_json() != system["json"]:
+                raise ValueError(
+                    f"this lssi identifies another model from {system['path']} than the one "
+                    "pickled (the file changed, or another version?): identify it again."
+                )
+            return
         fit = state["fit"]
         if fit is not None:
             self._run(fit["name"], fit["t"], fit["x"], fit["v"], fit["u"])
@@ -577,8 +677,19 @@ def read_recording(path: str):
 def identify(path, **options) -> Model:
     """``lssi identify FILE --f64`` with the options of ``Model`` (``refine=False``:
     ``--no-refine``; ``f32=True``: ``--f32``). Returns the fitted Model; ValueError says why
-    a file cannot be used."""
+    a file cannot be used.
+
+    A file with an electrical column (``V``, the voltage across the load, or ``i``, the
+    current) is a harvester's system, as for the command: the Model holds its equations
+    (``equations()``: ``{"x''": {...}, "V'": {...}}``, ``states()``: ``["x", "v", "V"]``),
+    ``to_json()`` is the command's ``--json`` object, and ``simulate`` takes and returns
+    mappings of state names (systems are not refined yet: ``refine`` does not apply)."""
     m = Model(**options)
+    system = _lssi.identify_system(str(path), *m._options())
+    if system is not None:
+        m._fit = system
+        m._system_path = str(path)
+        return m
     t, x, v, u = read_recording(path)
     m._run(str(path), t, x, v, u)
     return m
