@@ -84,3 +84,23 @@ def test_simulate_a_system_refuses_bad_input(piezo):
             m.simulate({"x": 0.0, "v": 0.0, "V": 0.0}, t)
     with pytest.raises(ValueError, match="coefficients\\(\\) is for a single equation"):
         m.coefficients()
+
+
+@pytest.mark.parametrize("wells", ["monostable", "bistable"])
+@pytest.mark.parametrize("observe", ["x", "v", "xv"])
+def test_every_piezo_variant_equals_the_command(cli, tmp_path, wells, observe):
+    """Mono- and bistable, x, v alone (integrated, as the command does) or both: the same
+    system as `lssi identify --json`, and a free run of every state over t."""
+    path = tmp_path / f"piezo-{wells}-{observe}.csv"
+    cli("gen", "piezo", "--input", "--wells", wells, "--observe", observe, path)
+    expected = cli("identify", path, "--json", "--f64").strip()
+    m = lssi.identify(path)
+    assert m.to_json() == expected
+    assert list(m.equations()) == ["x''", "V'"]
+    header = path.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, max_rows=500)
+    col = {name: data[:, k] for k, name in enumerate(header)}
+    x0 = {"x": col.get("x", np.zeros(1))[0], "v": col.get("v", np.zeros(1))[0], "V": col["V"][0]}
+    out = m.simulate(x0, col["t"], u=col["u"])
+    assert sorted(out) == ["V", "v", "x"]
+    assert all(values.shape == col["t"].shape for values in out.values())
