@@ -470,11 +470,15 @@ pub fn run<T: Real>(
 /// Rows whose mean is the reference of a channel ([`Reference`]).
 pub const REFERENCE_ROWS: usize = 1024;
 
+/// How many ranges of the first rows away from 0 their mean must lie to be a reference
+/// ([`Reference::channel`]).
+pub const REFERENCE_RANGES: f64 = 3.0;
+
 /// The references subtracted from x and v (in f64, before anything is estimated from them or
 /// they are converted to the identifier's precision), and added back to the model's offsets
 /// ([`Reference::restore`]): the mean of a channel's
-/// first [`REFERENCE_ROWS`] finite values when it lies more than their standard deviation
-/// from 0, else 0. Raw ADC counts, or a displacement 10⁴ times its amplitude away from zero,
+/// first [`REFERENCE_ROWS`] finite values when it lies more than [`REFERENCE_RANGES`] times
+/// their range from 0, else 0. Raw ADC counts, or a displacement 10⁴ times its amplitude away from zero,
 /// leave an f32 only a few significant bits of the motion; less the reference they keep all
 /// 24 (a device can do the same with its first rows). A recording about zero is fed as it is.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -499,7 +503,7 @@ impl Reference {
     }
 
     /// The reference of one channel: the mean of its first [`REFERENCE_ROWS`] finite values
-    /// when it is further from 0 than their standard deviation, else 0.
+    /// when it is further from 0 than [`REFERENCE_RANGES`] times their range, else 0.
     pub fn channel(values: &[f64]) -> f64 {
         let head: Vec<f64> = values
             .iter()
@@ -512,8 +516,20 @@ impl Reference {
         }
         let n = head.len() as f64;
         let mean = head.iter().sum::<f64>() / n;
-        let sd = (head.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
-        if mean.abs() > sd { mean } else { 0.0 }
+        let (lo, hi) = head
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
+        // Far from 0 against the motion's own range: an offset that costs f32 its bits. A
+        // record that starts away from its equilibrium (released from x₀, eq. 17's x = 2 at
+        // t = 0) is not: shifted, the identifier would have to find its origin again, and
+        // it finds it only to 10⁻⁵ of x₀ (eq. 17 clean: 0.0009 % -> 0.009 %).
+        if mean.abs() > REFERENCE_RANGES * (hi - lo) {
+            mean
+        } else {
+            0.0
+        }
     }
 
     /// Whether nothing is subtracted.
