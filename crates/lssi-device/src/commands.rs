@@ -96,9 +96,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             (Command::Reset, true) => self.reset_system(link),
             (Command::ModelPart(offset), false) => self.send_model_part(link, offset),
             // The model in parts is one equation's.
-            (Command::ModelPart(_), true) => {
-                self.nak(link, CONTROL_SEQ, NakReason::NotConfigured)
-            }
+            (Command::ModelPart(_), true) => self.nak(link, CONTROL_SEQ, NakReason::NotConfigured),
         }
     }
 
