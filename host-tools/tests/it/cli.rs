@@ -188,7 +188,14 @@ fn identify_help_groups_its_flags_input_library_identifier_output() {
             });
     assert_eq!(
         headings,
-        ["Options", "Input", "Library", "Identifier", "Output"],
+        [
+            "Options",
+            "Input",
+            "System (a harvester's electrical channels)",
+            "Library",
+            "Identifier",
+            "Output"
+        ],
         "{help}"
     );
     let under = |flag: &str| {
