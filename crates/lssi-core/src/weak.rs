@@ -24,6 +24,53 @@
 
 use crate::real::Real;
 
+/// The bump φ(τ) = (1 − τ²)⁴ sampled at the midpoints of L rows and normalised to sum 1:
+/// the weights of a test function (the single-equation sums here and the system's,
+/// `identifier::system`).
+#[derive(Clone, Copy)]
+pub(crate) struct Bump<T> {
+    /// 1/L: τ of row i is (2i + 1)/L − 1.
+    step: T,
+    /// 1/Σφ over the L midpoints.
+    inverse_norm: T,
+}
+
+impl<T: Real> Bump<T> {
+    /// Every field zero (no test function).
+    pub(crate) const fn zeroed() -> Self {
+        Self {
+            step: T::ZERO,
+            inverse_norm: T::ZERO,
+        }
+    }
+
+    /// The bump over `width` rows (0: zeroed).
+    pub(crate) fn new(width: u16) -> Self {
+        if width == 0 {
+            return Self::zeroed();
+        }
+        let l = f64::from(width);
+        let mut sum = 0.0;
+        for i in 0..u32::from(width) {
+            let tau = (2.0 * f64::from(i) + 1.0) / l - 1.0;
+            let b = 1.0 - tau * tau;
+            sum += (b * b) * (b * b);
+        }
+        Self {
+            step: T::from_f64(1.0 / l),
+            inverse_norm: T::from_f64(1.0 / sum),
+        }
+    }
+
+    /// φ at row `i`, over Σφ.
+    #[inline(always)]
+    pub(crate) fn weight(&self, i: u32) -> T {
+        let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
+        let b = T::ONE - tau * tau;
+        (b * b) * (b * b) * self.inverse_norm
+    }
+}
+
 /// Overlapping test-function sums.
 #[derive(Clone)]
 pub(crate) struct TestRows<T, const P: usize> {
@@ -33,10 +80,8 @@ pub(crate) struct TestRows<T, const P: usize> {
     quarter: u32,
     /// Rows taken since `configure`.
     phase: u32,
-    /// 1/L: τ of row i is (2i + 1)/L − 1.
-    step: T,
-    /// 1/Σφ over the L midpoints.
-    inverse_norm: T,
+    /// The weights.
+    bump: Bump<T>,
     /// The four partial sums of the columns and the target.
     columns: [[T; P]; 4],
     targets: [T; 4],
@@ -49,8 +94,7 @@ impl<T: Real, const P: usize> TestRows<T, P> {
             width: 0,
             quarter: 0,
             phase: 0,
-            step: T::ZERO,
-            inverse_norm: T::ZERO,
+            bump: Bump::zeroed(),
             columns: [[T::ZERO; P]; 4],
             targets: [T::ZERO; 4],
         }
@@ -61,15 +105,7 @@ impl<T: Real, const P: usize> TestRows<T, P> {
         self.width = u32::from(width);
         self.quarter = self.width / 4;
         if width > 0 {
-            let l = f64::from(width);
-            let mut sum = 0.0;
-            for i in 0..self.width {
-                let tau = (2.0 * f64::from(i) + 1.0) / l - 1.0;
-                let b = 1.0 - tau * tau;
-                sum += (b * b) * (b * b);
-            }
-            self.step = T::from_f64(1.0 / l);
-            self.inverse_norm = T::from_f64(1.0 / sum);
+            self.bump = Bump::new(width);
         }
         // Nothing summed yet. A gap in the data does not start the sums again: each is a
         // weighted sum of rows, which satisfies the equation whatever rows it holds.
@@ -81,9 +117,7 @@ impl<T: Real, const P: usize> TestRows<T, P> {
     /// φ at row `i` of a sum, over Σφ.
     #[inline(always)]
     fn weight(&self, i: u32) -> T {
-        let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
-        let b = T::ONE - tau * tau;
-        (b * b) * (b * b) * self.inverse_norm
+        self.bump.weight(i)
     }
 
     /// Rows between two completed sums.

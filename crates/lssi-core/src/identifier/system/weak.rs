@@ -4,6 +4,7 @@
 //! the columns' sums is the same.
 
 use crate::real::Real;
+use crate::weak::Bump;
 
 /// Overlapping test-function sums of a row's columns and its `E` targets.
 #[derive(Clone)]
@@ -14,10 +15,8 @@ pub(super) struct SystemTestRows<T, const P: usize, const E: usize> {
     quarter: u32,
     /// Rows taken so far (kept below 4L + 3L/4).
     phase: u32,
-    /// 1/L.
-    step: T,
-    /// 1/Σφ over the L midpoints.
-    inverse_norm: T,
+    /// The weights.
+    bump: Bump<T>,
     columns: [[T; P]; 4],
     targets: [[T; E]; 4],
 }
@@ -29,8 +28,7 @@ impl<T: Real, const P: usize, const E: usize> SystemTestRows<T, P, E> {
             width: 0,
             quarter: 0,
             phase: 0,
-            step: T::ZERO,
-            inverse_norm: T::ZERO,
+            bump: Bump::zeroed(),
             columns: [[T::ZERO; P]; 4],
             targets: [[T::ZERO; E]; 4],
         }
@@ -38,27 +36,14 @@ impl<T: Real, const P: usize, const E: usize> SystemTestRows<T, P, E> {
 
     /// Sums of width `width` (a multiple of 4, at least 8; 0: off), empty.
     pub(super) fn new(width: u16) -> Self {
-        let mut s = Self {
+        Self {
             width: u32::from(width),
             quarter: u32::from(width) / 4,
             phase: 0,
-            step: T::ZERO,
-            inverse_norm: T::ZERO,
+            bump: Bump::new(width),
             columns: [[T::ZERO; P]; 4],
             targets: [[T::ZERO; E]; 4],
-        };
-        if width > 0 {
-            let l = f64::from(width);
-            let mut sum = 0.0;
-            for i in 0..s.width {
-                let tau = (2.0 * f64::from(i) + 1.0) / l - 1.0;
-                let b = 1.0 - tau * tau;
-                sum += (b * b) * (b * b);
-            }
-            s.step = T::from_f64(1.0 / l);
-            s.inverse_norm = T::from_f64(1.0 / sum);
         }
-        s
     }
 
     /// Whether the sums are on.
@@ -69,9 +54,7 @@ impl<T: Real, const P: usize, const E: usize> SystemTestRows<T, P, E> {
     /// φ at row `i` of a sum, over Σφ.
     #[inline(always)]
     fn weight(&self, i: u32) -> T {
-        let tau = T::from_usize(2 * i as usize + 1) * self.step - T::ONE;
-        let b = T::ONE - tau * tau;
-        (b * b) * (b * b) * self.inverse_norm
+        self.bump.weight(i)
     }
 
     /// Adds a row (first `n` columns, the targets `y`) to the sums it falls in; a sum that
