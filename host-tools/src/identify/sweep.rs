@@ -179,7 +179,20 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
     let last = intercept + slope * (segments - 1) as f64;
     let total = (last - first).abs();
     let low = first.min(last);
-    let drifts = low > 0.0 && total >= MIN_DRIFT * low && total >= MIN_RESOLUTIONS * resolution;
+    // A sweep keeps moving to the end; a transient at the well's own frequency that dies
+    // out into a steady forced response (a few high lines, then a flat tail at Ω) tilts the
+    // fit, but the kept lines of its later half stay at one frequency.
+    let (late_low, late_high) = measured
+        .iter()
+        .filter(|(i, _)| *i >= segments / 2 && inliers.contains(i))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &(_, l)| {
+            (lo.min(l), hi.max(l))
+        });
+    let late = late_high - late_low;
+    let drifts = low > 0.0
+        && total >= MIN_DRIFT * low
+        && total >= MIN_RESOLUTIONS * resolution
+        && late >= 0.5 * MIN_DRIFT * late_low;
     if debug {
         eprintln!(
             "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, drifts {drifts}",

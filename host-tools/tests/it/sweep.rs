@@ -99,7 +99,7 @@ fn a_sweep_without_u_is_named() {
 #[test]
 fn steady_chaotic_and_ringdown_records_are_not_sweeps() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [&[&str]; 8] = [
+    let cases: [&[&str]; 9] = [
         &["--wells", "monostable", "--seed", "21"],
         &["--wells", "monostable", "--amplitude", "5", "--seed", "22"],
         &[
@@ -134,6 +134,22 @@ fn steady_chaotic_and_ringdown_records_are_not_sweeps() {
             "5000",
             "--seed",
             "22",
+        ],
+        // A transient at the well's own, higher frequency that dies into the forced
+        // response: the lines fall, then stay at Ω (it was called a sweep).
+        &[
+            "--wells",
+            "monostable",
+            "--amplitude",
+            "0.6",
+            "--rate",
+            "500",
+            "--t-end",
+            "12",
+            "--delta",
+            "0.02",
+            "--seed",
+            "991",
         ],
     ];
     for (i, args) in cases.iter().enumerate() {
