@@ -294,6 +294,101 @@ pub fn read_system(path: &str) -> Result<Option<SystemData>, String> {
     .map_err(|e| e.to_string())
 }
 
+/// The columns of a system's recording held in memory: the mechanical ones (x may be absent
+/// when v is given: it is then v integrated, as `lssi identify` integrates it) and the
+/// electrical ones (`V`, the voltage across the load; `i`, the current).
+pub struct SystemColumns {
+    /// Name the error messages give the data (a file name, or "array").
+    pub name: String,
+    /// Times, seconds.
+    pub t: Vec<f64>,
+    /// Displacement, when measured.
+    pub x: Option<Vec<f64>>,
+    /// Velocity, when measured.
+    pub v: Option<Vec<f64>>,
+    /// Excitation, when measured.
+    pub u: Option<Vec<f64>>,
+    /// The voltage across the load, when measured.
+    pub voltage: Option<Vec<f64>>,
+    /// The current, when measured.
+    pub current: Option<Vec<f64>>,
+}
+
+/// The sentence `lssi identify` warns with when x is v integrated (`lssi_host::system`'s
+/// reader words it so; the package's tests compare the two reports).
+fn x_from_v_sentence(width: usize) -> String {
+    format!(
+        "x is v integrated, its drift removed (the least-squares line, then a centred moving average of {width} samples, two hundred periods of v): the model is in x about its mean"
+    )
+}
+
+/// The system's data as `lssi identify FILE` reads it from a file with these columns.
+pub fn system_data(c: SystemColumns) -> Result<SystemData, String> {
+    use lssi_core::library::Electrical;
+    use lssi_host::system::ElectricalChannel;
+    let n = c.t.len();
+    lengths(
+        n,
+        &[
+            ("x", c.x.as_ref().map(Vec::len)),
+            ("v", c.v.as_ref().map(Vec::len)),
+            ("u", c.u.as_ref().map(Vec::len)),
+            ("V", c.voltage.as_ref().map(Vec::len)),
+            ("i", c.current.as_ref().map(Vec::len)),
+        ],
+    )
+    .map_err(|e| e.replace("but x has", "but t has"))?;
+    if c.voltage.is_none() && c.current.is_none() {
+        return Err("a system needs an electrical channel: give V (the voltage across the load) or i (the current).".into());
+    }
+    let (x, x_from_v) = match (c.x, &c.v) {
+        (Some(x), _) => (x, None),
+        (None, Some(v)) => {
+            let (x, width) = lssi_host::system::integrate_velocity(&c.t, v);
+            (x, Some(x_from_v_sentence(width)))
+        }
+        (None, None) => {
+            return Err(
+                "a system needs a displacement x or a velocity v beside its electrical channel."
+                    .into(),
+            );
+        }
+    };
+    let mut electrical = Vec::new();
+    if let Some(values) = c.voltage {
+        electrical.push(ElectricalChannel {
+            kind: Electrical::Voltage,
+            name: "V".into(),
+            values,
+        });
+    }
+    if let Some(values) = c.current {
+        electrical.push(ElectricalChannel {
+            kind: Electrical::Current,
+            name: "i".into(),
+            values,
+        });
+    }
+    let columns = ColumnNames {
+        t: "t".into(),
+        x: "x".into(),
+        v: c.v.as_ref().map(|_| "v".into()),
+        u: c.u.as_ref().map(|_| "u".into()),
+    };
+    Ok(SystemData {
+        recording: Recording {
+            path: PathBuf::from(c.name),
+            t: c.t,
+            x,
+            v: c.v,
+            u: c.u,
+            columns,
+        },
+        electrical,
+        x_from_v,
+    })
+}
+
 /// What `lssi identify FILE` reports for a system, the model to simulate, and the bound on
 /// the free run (`lssi simulate`'s: the RMS of the recording's x, plus 1).
 pub struct SystemFitted {
@@ -303,29 +398,73 @@ pub struct SystemFitted {
     pub model: SystemSim,
     /// The divergence bound of a free run.
     pub bound: f64,
+    /// The shared library's term names, in column order.
+    pub library: Vec<String>,
 }
 
 /// `lssi identify FILE` for a system, as the command runs it
-/// ([`lssi_host::system::identify_command`] without `--load-ohms`, coupling order 1).
-pub fn fit_system(data: &SystemData, options: &Options) -> Result<SystemFitted, String> {
+/// ([`lssi_host::system::identify_command`]): `coupling_order` its `--coupling-order`,
+/// `load_ohms` its `--load-ohms` (the harvester in physical terms).
+pub fn fit_system(
+    data: &SystemData,
+    options: &Options,
+    coupling_order: u8,
+    load_ohms: Option<f64>,
+) -> Result<SystemFitted, String> {
     use lssi_host::system;
-    let (config, estimated) = system::configure(data, options, 1).map_err(|e| e.to_string())?;
-    let report = if options.f32 {
+    if let Some(r) = load_ohms
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err(format!(
+            "load_ohms must be a positive resistance in ohms, not {r}."
+        ));
+    }
+    let (config, estimated) =
+        system::configure(data, options, coupling_order).map_err(|e| e.to_string())?;
+    let mut report = if options.f32 {
         system::run::<f32>(data, config, estimated)
     } else {
         system::run::<f64>(data, config, estimated)
     }
     .map_err(|e| e.to_string())?;
+    if let Some(r) = load_ohms {
+        report.harvester = Some(system::power::harvester(&report, data, r));
+    }
     let model = SystemSim::of_report(&report).ok_or_else(|| {
         "internal error: a term of the system's report is not one lssi can simulate; please report it."
             .to_string()
     })?;
+    let library =
+        match lssi_core::library::StateLibrary::<{ system::TERM_CAPACITY }>::new(&config.library())
+        {
+            Ok(library) => library
+                .terms()
+                .iter()
+                .map(|t| t.name(report.omega, &config.electrical).to_string())
+                .collect(),
+            Err(e) => {
+                return Err(format!(
+                    "internal error: the system's library is not usable ({e:?}); please report it."
+                ));
+            }
+        };
     let bound = system::simulate::rms(&data.recording.x) + 1.0;
     Ok(SystemFitted {
         report,
         model,
         bound,
+        library,
     })
+}
+
+/// The first state (x, v, then the electrical states) `lssi simulate` starts a system's
+/// free run from, for a recording: v measured, or x's slope over its first samples.
+pub fn first_state(data: &SystemData) -> Result<Vec<f64>, String> {
+    if data.recording.t.is_empty() {
+        return Err("t has no samples: the first state needs one.".into());
+    }
+    let s = lssi_host::system::simulate::first_state(data);
+    Ok(s[..2 + data.electrical.len()].to_vec())
 }
 
 /// A system model's free run on the grid `t` from `start` (x, v, then the electrical

@@ -74,7 +74,7 @@ fn guarded<R>(doing: &str, f: impl FnOnce() -> Result<R, String>) -> Result<R, E
 /// The host library's sentences with the command's flags replaced by the Python arguments
 /// (`give --omega.` → `give omega=… (rad/s).`, `--omega 50 rad/s` → `omega=50 rad/s`).
 fn python_words(message: &str) -> String {
-    const FLAGS: [(&str, &str); 9] = [
+    const FLAGS: [(&str, &str); 11] = [
         ("give --omega", "give omega=… (rad/s)"),
         ("--omega ", "omega="),
         ("--omega", "omega"),
@@ -84,6 +84,8 @@ fn python_words(message: &str) -> String {
         ("--memory", "memory"),
         ("--no-smoothing", "smoothing=False"),
         ("--f64", "f32=False"),
+        ("--load-ohms", "load_ohms"),
+        ("--coupling-order", "coupling_order"),
     ];
     let mut out = message.to_string();
     for (flag, argument) in FLAGS {
@@ -364,6 +366,11 @@ impl SystemFit {
         self.fitted.model.uses_input()
     }
 
+    /// The shared library's term names, in column order (every equation is sparse over it).
+    fn feature_names(&self) -> Vec<String> {
+        self.fitted.library.clone()
+    }
+
     /// Free run of the model on the grid `t` from `x0` (one value per state, in `states()`
     /// order); `u` the excitation on the same grid. One array per state.
     #[pyo3(signature = (t, x0, u=None))]
@@ -414,7 +421,7 @@ impl SystemFit {
 /// `lssi identify FILE` when the file is a system's recording (it has an electrical column,
 /// `V` or `i`): its model; `None` for a single-equation recording.
 #[pyfunction]
-#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory))]
+#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify_system(
     py: Python<'_>,
@@ -426,17 +433,101 @@ fn identify_system(
     f32: bool,
     smoothing: bool,
     memory: Option<f64>,
+    coupling_order: u8,
+    load_ohms: Option<f64>,
 ) -> PyResult<Option<SystemFit>> {
     let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
     let fitted = py.detach(|| {
         guarded("identifying the system", || {
             match host::read_system(path)? {
-                Some(data) => host::fit_system(&data, &options).map(Some),
+                Some(data) => {
+                    host::fit_system(&data, &options, coupling_order, load_ohms).map(Some)
+                }
                 None => Ok(None),
             }
         })
     })?;
     Ok(fitted.map(|fitted| SystemFit { fitted }))
+}
+
+/// A system's columns from arrays (`x` or `v`, and `V` or `i`, all of `t`'s length).
+#[allow(clippy::too_many_arguments)]
+fn system_columns(
+    name: &str,
+    t: PyReadonlyArray1<'_, f64>,
+    x: Option<PyReadonlyArray1<'_, f64>>,
+    v: Option<PyReadonlyArray1<'_, f64>>,
+    u: Option<PyReadonlyArray1<'_, f64>>,
+    voltage: Option<PyReadonlyArray1<'_, f64>>,
+    current: Option<PyReadonlyArray1<'_, f64>>,
+) -> host::SystemColumns {
+    host::SystemColumns {
+        name: name.to_string(),
+        t: t.as_array().to_vec(),
+        x: vector(x),
+        v: vector(v),
+        u: vector(u),
+        voltage: vector(voltage),
+        current: vector(current),
+    }
+}
+
+/// `lssi identify` on a system's arrays, as on a file with columns t, x (or v alone:
+/// integrated), v, u, V, i holding them; `name` standing for the file in its sentences.
+#[pyfunction]
+#[pyo3(signature = (t, x, v, u, voltage, current, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None, name="array"))]
+#[allow(clippy::too_many_arguments)]
+fn fit_system(
+    py: Python<'_>,
+    t: PyReadonlyArray1<'_, f64>,
+    x: Option<PyReadonlyArray1<'_, f64>>,
+    v: Option<PyReadonlyArray1<'_, f64>>,
+    u: Option<PyReadonlyArray1<'_, f64>>,
+    voltage: Option<PyReadonlyArray1<'_, f64>>,
+    current: Option<PyReadonlyArray1<'_, f64>>,
+    omega: Option<f64>,
+    harmonics: u8,
+    poly_order: u8,
+    family: &str,
+    f32: bool,
+    smoothing: bool,
+    memory: Option<f64>,
+    coupling_order: u8,
+    load_ohms: Option<f64>,
+    name: &str,
+) -> PyResult<SystemFit> {
+    let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
+    let columns = system_columns(name, t, x, v, u, voltage, current);
+    let fitted = py.detach(|| {
+        guarded("identifying the system", || {
+            let data = host::system_data(columns)?;
+            host::fit_system(&data, &options, coupling_order, load_ohms)
+        })
+    })?;
+    Ok(SystemFit { fitted })
+}
+
+/// The state `lssi simulate` starts a system's free run from for a recording with these
+/// columns (x, v, then the electrical states), and x (v integrated when x is None).
+#[pyfunction]
+#[pyo3(signature = (t, x, v, voltage, current))]
+#[allow(clippy::type_complexity)]
+fn system_start<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    x: Option<PyReadonlyArray1<'py, f64>>,
+    v: Option<PyReadonlyArray1<'py, f64>>,
+    voltage: Option<PyReadonlyArray1<'py, f64>>,
+    current: Option<PyReadonlyArray1<'py, f64>>,
+) -> PyResult<(Vec<f64>, Bound<'py, PyArray1<f64>>)> {
+    let columns = system_columns("array", t, x, v, None, voltage, current);
+    let (start, x) = py.detach(|| {
+        guarded("taking the first state", || {
+            let data = host::system_data(columns)?;
+            Ok((host::first_state(&data)?, data.recording.x))
+        })
+    })?;
+    Ok((start, PyArray1::from_vec(py, x)))
 }
 
 /// Panics inside the guard, for the tests: what a bug in the Rust code becomes in Python
@@ -687,6 +778,8 @@ fn _lssi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(read_recording, m)?)?;
     m.add_function(wrap_pyfunction!(identify_system, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_system, m)?)?;
+    m.add_function(wrap_pyfunction!(system_start, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
 }

@@ -82,8 +82,11 @@ def test_simulate_a_system_refuses_bad_input(piezo):
     if "u" in m.equations()["x''"]:
         with pytest.raises(ValueError, match="u: the model has an excitation term u"):
             m.simulate({"x": 0.0, "v": 0.0, "V": 0.0}, t)
-    with pytest.raises(ValueError, match="coefficients\\(\\) is for a single equation"):
-        m.coefficients()
+    # The single-equation stream has no system: named.
+    with pytest.raises(ValueError, match="stream\\(\\) is for a single equation"):
+        m.stream()
+    # coefficients() of a system: per equation, over the shared library.
+    assert list(m.coefficients()) == ["x''", "V'"]
 
 
 @pytest.mark.parametrize("wells", ["monostable", "bistable"])

@@ -210,21 +210,42 @@ def _increasing(t: np.ndarray, name: str = "t") -> None:
         )
 
 
+#: The electrical channels a system's recording may carry, in the library's order: the
+#: voltage across the load and the current.
+ELECTRICAL = ("V", "i")
+
+
+def _is_frame(x) -> bool:
+    return hasattr(x, "columns") and hasattr(x, "__getitem__")
+
+
+def _frame(frame, t, v, u, electrical: Optional[Dict[str, Any]] = None):
+    """A DataFrame's columns t, x, v, u (and V, i into ``electrical`` when given) where the
+    arguments do not give them."""
+    columns = list(frame.columns)
+    x = frame["x"].to_numpy() if "x" in columns else None
+    if x is None and (electrical is None or "v" not in columns
+                      or not any(name in columns for name in ELECTRICAL)):
+        raise ValueError(f"the DataFrame has no column 'x' (it has {columns}).")
+    if t is None and "t" in columns:
+        t = frame["t"]
+    if v is None and "v" in columns:
+        v = frame["v"].to_numpy()
+    if u is None and "u" in columns:
+        u = frame["u"].to_numpy()
+    if electrical is not None:
+        for name in ELECTRICAL:
+            if electrical.get(name) is None and name in columns:
+                electrical[name] = frame[name].to_numpy()
+    return x, t, v, u
+
+
 def _columns(x, t=None, v=None, u=None, dt=None, minimum: int = MIN_SAMPLES,
              origin: Optional[np.datetime64] = None):
     """Checks and converts (x, t, v, u); a pandas DataFrame in x supplies its t/x/v/u
     columns. Returns (t, x, v, u, origin), origin the datetime t = 0 stands for (or None)."""
-    if hasattr(x, "columns") and hasattr(x, "__getitem__"):
-        frame = x
-        if "x" not in frame.columns:
-            raise ValueError(f"the DataFrame has no column 'x' (it has {list(frame.columns)}).")
-        x = frame["x"].to_numpy()
-        if t is None and "t" in frame.columns:
-            t = frame["t"]
-        if v is None and "v" in frame.columns:
-            v = frame["v"].to_numpy()
-        if u is None and "u" in frame.columns:
-            u = frame["u"].to_numpy()
+    if _is_frame(x):
+        x, t, v, u = _frame(x, t, v, u)
     x = _column("x", x)
     n = x.shape[0]
     if n < minimum:
@@ -241,6 +262,57 @@ def _columns(x, t=None, v=None, u=None, dt=None, minimum: int = MIN_SAMPLES,
     v = None if v is None else _column("v", v, n)
     u = None if u is None else _column("u", u, n)
     return t, x, v, u, origin
+
+
+def _system_columns(x, t, v, u, dt, electrical: Dict[str, Any], minimum: int = MIN_SAMPLES,
+                    origin: Optional[np.datetime64] = None):
+    """Checks and converts a system's columns: x (or v alone), v, u and the electrical ones
+    (``electrical``: V, i), all of one length. Returns (t, columns, origin), columns a dict
+    with keys x, v, u, V, i (None where absent)."""
+    if x is None and v is None:
+        raise ValueError(
+            "give the displacement x, or the velocity v (then integrated), beside the "
+            "electrical channel."
+        )
+    first = "x" if x is not None else "v"
+    lead = _column(first, x if x is not None else v)
+    n = lead.shape[0]
+    if n < minimum:
+        raise ValueError(f"{first} has {n} samples; at least {minimum} are needed.")
+
+    def check(name, a):
+        if a is None:
+            return None
+        out = _column(name, a)
+        if out.shape[0] != n:
+            raise ValueError(f"{name} has {out.shape[0]} samples but {first} has {n}.")
+        return out
+
+    columns = {"x": check("x", x), "v": check("v", v), "u": check("u", u)}
+    for name in ELECTRICAL:
+        columns[name] = check(name, electrical.get(name))
+    if t is None:
+        if dt is None:
+            raise ValueError("give the sample times t, or the sample period dt.")
+        step = _seconds("dt", dt, "a positive number of seconds")
+        t = np.arange(n, dtype=np.float64) * step
+    elif dt is not None:
+        raise ValueError("give either t or dt, not both.")
+    t, origin = _times(t, n, origin)
+    if t.shape[0] != n:
+        raise ValueError(f"t has {t.shape[0]} samples but {first} has {n}.")
+    _increasing(t)
+    return t, columns, origin
+
+
+def _score(name: str, simulated: np.ndarray, measured: np.ndarray) -> float:
+    """1 − NRMSE² of a free run against the measured state; -inf when it diverged."""
+    if not np.all(np.isfinite(simulated)):
+        return float("-inf")
+    var = float(np.var(measured))
+    if var == 0.0:
+        raise ValueError(f"{name} is constant: a score needs a signal that varies.")
+    return 1.0 - float(np.mean((simulated - measured) ** 2)) / var
 
 
 class Model:
@@ -270,8 +342,10 @@ class Model:
         smoothing: bool = True,
         memory: Optional[float] = None,
         refine: bool = True,
+        coupling_order: int = 1,
     ) -> None:
         self.poly_order = _integer("poly_order", poly_order, 1, 9)
+        self.coupling_order = _integer("coupling_order", coupling_order, 1, 3)
         self.harmonics = _integer("harmonics", harmonics, 0, 8)
         self.omega = _positive("omega", omega, "a positive angular frequency in rad/s (or None)")
         self.memory = _positive("memory", memory, "a positive time in seconds (or None)")
@@ -290,6 +364,10 @@ class Model:
         self._t_origin: Optional[np.datetime64] = None
         # The file of a system's model (a recording with an electrical column), else None.
         self._system_path: Optional[str] = None
+        # A system fitted from arrays: its columns and load, for pickling.
+        self._system_data: Optional[Dict[str, Any]] = None
+        # The load resistance a system's report is for (load_ohms), else None.
+        self._load_ohms: Optional[float] = None
 
     def _options(self) -> Tuple:
         return (
@@ -305,24 +383,71 @@ class Model:
     def _option_dict(self) -> Dict[str, Any]:
         return dict(poly_order=self.poly_order, harmonics=self.harmonics, omega=self.omega,
                     family=self.family, f32=self.f32, smoothing=self.smoothing,
-                    memory=self.memory, refine=self.refine)
+                    memory=self.memory, refine=self.refine,
+                    coupling_order=self.coupling_order)
 
     # -- fitting -------------------------------------------------------------------------
-    def fit(self, x, t=None, v=None, u=None, dt=None) -> "Model":
+    def fit(self, x=None, t=None, v=None, u=None, dt=None, *, V=None, i=None,
+            load_ohms=None) -> "Model":
         """Identifies the equation from displacement ``x`` (and a measured velocity ``v``,
         excitation ``u`` when there are), sampled at times ``t`` (seconds, or dates and
         times: then seconds from the first sample) or every ``dt`` seconds. ``x`` may be a
-        pandas DataFrame with columns t, x and optionally v, u.
+        pandas DataFrame with columns t, x and optionally v, u (and V, i).
+
+        With an electrical channel, ``V`` (the voltage across the load) or ``i`` (the
+        current), the model is the harvester's system, as ``lssi identify`` finds it for a
+        file with these columns: ``x'' = …`` and ``V' = …`` (``i' = …``), each sparse over
+        one shared library of the states (``equations()``, ``coefficients()``). ``x`` may
+        then be None with ``v`` given: x is v integrated, its drift removed, as the command
+        does. ``load_ohms``, the load the voltage was recorded across, adds the harvester in
+        physical terms (``harvester()``: coupling factor, time constant, power against load).
         Raises ValueError for bad input or when no model comes out."""
-        t, x, v, u, origin = _columns(x, t, v, u, dt)
-        self._run("array", t, x, v, u)
+        electrical: Dict[str, Any] = {"V": V, "i": i}
+        frame = _is_frame(x)
+        if frame:
+            x, t, v, u = _frame(x, t, v, u, electrical)
+        load = _positive("load_ohms", load_ohms, "a positive resistance in ohms (or None)")
+        if all(e is None for e in electrical.values()):
+            if load is not None:
+                raise ValueError(
+                    "load_ohms applies to a system: give the voltage V across that load "
+                    "(or the current i) beside x."
+                )
+            if self.coupling_order != 1:
+                raise ValueError(
+                    f"coupling_order={self.coupling_order} applies to a system: give the "
+                    "voltage V across the load (or the current i) beside x."
+                )
+            if x is None:
+                raise ValueError(
+                    "give the displacement x (a velocity v alone is enough only for a system, "
+                    "with V or i)."
+                )
+            t, x, v, u, origin = _columns(x, t, v, u, dt)
+            self._run("array", t, x, v, u)
+            self._t_origin = origin
+            return self
+        t, columns, origin = _system_columns(x, t, v, u, dt, electrical)
+        self._fit = _lssi.fit_system(
+            t, columns["x"], columns["v"], columns["u"], columns["V"], columns["i"],
+            *self._options(), coupling_order=self.coupling_order, load_ohms=load,
+        )
+        self._data = None
+        self._system_path = None
+        self._system_data = dict(t=t, load_ohms=load, **columns)
+        self._load_ohms = load
         self._t_origin = origin
         return self
 
     def _run(self, name: str, t, x, v, u) -> None:
         self._fit = _lssi.fit(t, x, v, u, *self._options(), refine=self.refine, name=name)
         self._system_path = None
+        self._system_data = None
+        self._load_ohms = None
         self._data = (name, t, x, v, u)
+
+    def _is_system(self) -> bool:
+        return isinstance(self._fit, _lssi.SystemFit)
 
     def _fitted(self) -> Fit:
         if self._fit is None:
@@ -332,7 +457,7 @@ class Model:
     def _single(self, method: str) -> Fit:
         """The single-equation fit; ValueError naming ``method`` for a system's model."""
         fit = self._fitted()
-        if self._system_path is not None:
+        if self._is_system():
             raise ValueError(
                 f"{method}() is for a single equation; this model is a system "
                 f"({', '.join(self.equations())}): use equations() and to_json()."
@@ -343,18 +468,18 @@ class Model:
         """Whether the model is a system of equations (a recording with an electrical
         column, ``V`` or ``i``)."""
         self._fitted()
-        return self._system_path is not None
+        return self._is_system()
 
     def states(self) -> List[str]:
         """The states: ``["x", "v"]``, and for a system its electrical ones (``V``, ``i``)."""
         fit = self._fitted()
-        return list(fit.states()) if self._system_path is not None else ["x", "v"]
+        return list(fit.states()) if self._is_system() else ["x", "v"]
 
     def equations(self) -> Dict[str, Dict[str, float]]:
         """Each equation's active terms and coefficients, by target: ``{"x''": {"x": …},
         "V'": {"V": …, "v": …}}`` (a single equation: ``{"x''": …}``, its active terms)."""
         fit = self._fitted()
-        if self._system_path is not None:
+        if self._is_system():
             return {target: dict(terms) for target, terms in fit.equations()}
         return {"x''": dict(fit.terms())}
 
@@ -362,7 +487,7 @@ class Model:
     def equation(self) -> str:
         """The reported equation as one line, ``lssi identify``'s first (with ± a standard
         error on each coefficient when refined)."""
-        if self._system_path is not None:
+        if self._is_system():
             return "\n".join(self._fitted().text().splitlines()[: len(self.equations())])
         return self._fitted().equation()
 
@@ -371,35 +496,63 @@ class Model:
         x in ``unit`` (its ``--unit``)."""
         if not isinstance(unit, str):
             raise TypeError(f"unit must be a string, not {unit!r}.")
-        if self._system_path is not None:
+        if self._is_system():
             print(self._fitted().text(), end="")
             return
         print(self._fitted().text(unit), end="")
 
     def feature_names(self) -> List[str]:
-        """The library's term names, in order (``1``, ``x``, ``v``, ``x^2``, …, ``cos(21.4t)``)."""
-        return self._single("feature_names").feature_names()
+        """The library's term names, in order (``1``, ``x``, ``v``, ``x^2``, …, ``cos(21.4t)``;
+        for a system the shared library of every equation, with ``V``, ``x*V``, …)."""
+        return self._fitted().feature_names()
 
     def _dense(self, terms) -> Dict[str, float]:
         active = dict(terms)
         return {name: active.get(name, 0.0) for name in self._fitted().feature_names()}
 
-    def coefficients(self) -> Dict[str, float]:
+    def coefficients(self):
         """Every library term's coefficient in physical units (0 for inactive terms), of the
-        reported model: the refined one when it was taken (``report()["model"]`` says)."""
+        reported model: the refined one when it was taken (``report()["model"]`` says).
+
+        For a system, a dict per equation: ``{"x''": {term: coef, …}, "V'": {…}}``, every
+        term of the shared library in each (systems are not refined yet: the streaming
+        system identifier's model)."""
+        if self._is_system():
+            return {target: self._dense(terms) for target, terms in self._fitted().equations()}
         return self._dense(self._single("coefficients").terms())
 
-    def streaming_coefficients(self) -> Dict[str, float]:
+    def streaming_coefficients(self):
         """As ``coefficients()``, of the streaming identifier's model (what a device computes
-        for the same samples; the JSON's ``streaming_terms``)."""
+        for the same samples; the JSON's ``streaming_terms``). A system's model is the
+        streaming one: ``coefficients()``."""
+        if self._is_system():
+            return self.coefficients()
         return self._dense(self._single("streaming_coefficients").streaming_terms())
 
-    def standard_errors(self) -> Optional[Dict[str, float]]:
+    def standard_errors(self):
         """The standard error of each active term's coefficient when the reported model is the
         refined one (NaN where it could not be computed); None for the streaming model,
-        which has none."""
+        which has none. For a system, a dict per equation of the active terms' standard
+        errors (the report's least-squares ones; NaN where there is none)."""
+        if self._is_system():
+            return {
+                e["target"]: {
+                    term["term"]: float("nan") if term.get("se") is None else term["se"]
+                    for term in e["terms"]
+                }
+                for e in self.report()["equations"]
+            }
         se = self._single("standard_errors").standard_errors()
         return None if se is None else dict(se)
+
+    def harvester(self) -> Optional[Dict[str, Any]]:
+        """A system's harvester in physical terms for the load ``load_ohms`` given to
+        ``fit``/``identify`` (the report's ``harvester``: coupling factor ``coupling_k2``,
+        time constant, mean power measured and predicted, power against load and forcing
+        frequency); None without ``load_ohms``. ValueError for a single equation."""
+        if not self._is_system():
+            self._single("harvester")
+        return self.report().get("harvester")
 
     def to_json(self) -> str:
         """The object ``lssi identify --json`` prints for the same data and options
@@ -411,18 +564,22 @@ class Model:
         return json.loads(self.to_json())
 
     # -- using the model -----------------------------------------------------------------
-    def simulate(self, x0, t, u=None) -> Tuple[np.ndarray, np.ndarray]:
+    def simulate(self, x0, t, u=None):
         """Free run of the reported model from ``x0`` (x, or (x, v)) on the times ``t``
         (seconds, or dates and times as for ``fit``); ``u`` the excitation on the same grid,
         needed when the model has a ``u`` term. Returns (x, v); NaN after a divergence.
 
-        A system's model (``is_system()``) takes ``x0`` as a mapping of every state name to
-        its initial value (``{"x": …, "v": …, "V": …}``, ``states()``) and returns a dict of
-        state names to arrays, in the recording's units (``lssi simulate``'s free run)."""
-        if self._system_path is not None:
-            return self._simulate_system(x0, t, u)
+        ``x0`` may also be a mapping of every state name to its initial value
+        (``{"x": …, "v": …}``; a system's: ``{"x": …, "v": …, "V": …}``, ``states()``): the
+        result is then a dict of state names to arrays, in the recording's units (for a
+        system, ``lssi simulate``'s free run). A system's model takes only a mapping."""
         fit = self._fitted()
-        if np.ndim(x0) == 0:
+        if self._is_system():
+            return self._simulate_system(x0, t, u)
+        mapping = isinstance(x0, Mapping)
+        if mapping:
+            x_init, v_init = self._start(x0)
+        elif np.ndim(x0) == 0:
             x_init, v_init = x0, 0.0
         else:
             if len(x0) != 2:
@@ -437,25 +594,28 @@ class Model:
         t, _ = _times(t, origin=self._t_origin)
         _increasing(t)
         u = self._input(u, t.shape[0], "simulate")
-        return fit.simulate(t, x_init, v_init, u)
+        xs, vs = fit.simulate(t, x_init, v_init, u)
+        return {"x": xs, "v": vs} if mapping else (xs, vs)
 
-    def _simulate_system(self, x0, t, u) -> Dict[str, np.ndarray]:
-        fit = self._fitted()
+    def _start(self, x0) -> List[float]:
+        """The initial state from a mapping of every state name to its value, in
+        ``states()`` order."""
         states = self.states()
-        if not isinstance(x0, Mapping):
-            raise TypeError(
-                f"x0 must be a mapping of the system's states {states} to initial values "
-                f"(e.g. {{'x': 0.0, 'v': 0.0, ...}}), not {x0!r}."
-            )
+        kind = "system's " if self._is_system() else "model's "
         missing = [name for name in states if name not in x0]
         if missing:
             raise ValueError(
-                f"x0 has no initial value for the state(s) {missing}; the system's states are {states}."
+                f"x0 has no initial value for the state(s) {missing}; the {kind}states are {states}."
             )
         unknown = [name for name in x0 if name not in states]
         if unknown:
+            fitted_without = [name for name in unknown if name in ELECTRICAL]
+            why = (
+                f"; it was fitted without {' or '.join(fitted_without)}" if fitted_without else ""
+            )
             raise ValueError(
-                f"x0 names {unknown}, which are not states of this system (its states are {states})."
+                f"x0 names {unknown}, which are not states of this "
+                f"{'system' if self._is_system() else 'model'} (its states are {states}{why})."
             )
         start = []
         for name in states:
@@ -466,6 +626,17 @@ class Model:
             if not np.isfinite(value):
                 raise ValueError(f"x0[{name!r}] must be finite, not {value!r}.")
             start.append(value)
+        return start
+
+    def _simulate_system(self, x0, t, u) -> Dict[str, np.ndarray]:
+        fit = self._fitted()
+        states = self.states()
+        if not isinstance(x0, Mapping):
+            raise TypeError(
+                f"x0 must be a mapping of the system's states {states} to initial values "
+                f"(e.g. {{'x': 0.0, 'v': 0.0, ...}}), not {x0!r}."
+            )
+        start = self._start(x0)
         t, _ = _times(t, origin=self._t_origin)
         _increasing(t)
         if u is None:
@@ -484,29 +655,75 @@ class Model:
     def _input(self, u, n: int, method: str) -> Optional[np.ndarray]:
         if u is None:
             if self._fitted().uses_input():
+                coefficient = (
+                    "" if self._is_system()
+                    else f" (coefficient {dict(self._fitted().terms()).get('u')})"
+                )
                 raise ValueError(
-                    f"u: the model has an excitation term u (coefficient "
-                    f"{dict(self._fitted().terms()).get('u')}), so {method} needs the "
-                    "excitation u on the same grid as t."
+                    f"u: the model has an excitation term u{coefficient}, so {method} needs "
+                    "the excitation u on the same grid as t."
                 )
             return None
         return _column("u", u, n)
 
-    def score(self, x, t, u=None) -> float:
+    def score(self, x=None, t=None, u=None, v=None, V=None, i=None):
         """Free-run fit of the measured ``x``: 1 − NRMSE² (1 is perfect, 0 no better than the
-        mean, negative worse), simulated from x[0] with v[0] from a first difference."""
-        self._single("score")
-        t, x, _, u, _ = _columns(x, t, None, u, minimum=3, origin=self._t_origin)
-        u = self._input(u, t.shape[0], "score")
-        v0 = (x[1] - x[0]) / (t[1] - t[0])
-        xs, _ = self.simulate((x[0], v0), t, u)
-        if not np.all(np.isfinite(xs)):
-            return float("-inf")
-        var = float(np.var(x))
-        if var == 0.0:
-            raise ValueError("x is constant: a score needs a signal that varies.")
-        return 1.0 - float(np.mean((xs - x) ** 2)) / var
+        mean, negative worse, -inf when the free run diverges), simulated from x[0] with
+        v[0] from a first difference (or the measured ``v[0]``).
 
+        For a system, a dict of scores per measured state (``{"x": …, "V": …}``, and ``v``
+        when given): the free run from the first sample's state (as ``lssi simulate``
+        starts it: v measured, or x's slope over its first samples; x integrated from v when
+        x is None), driven by ``u``. Every electrical state of the model (``V``, ``i``) must
+        be given: its first value starts the run."""
+        fit = self._fitted()
+        if self._is_system():
+            return self._score_system(x, t, u, v, {"V": V, "i": i})
+        for name, value in (("V", V), ("i", i)):
+            if value is not None:
+                raise ValueError(
+                    f"{name}: this model was fitted without an electrical channel (a single "
+                    f"equation, states {self.states()}), so it cannot score {name}; fit a "
+                    f"system with Model().fit(x, t=t, {name}={name})."
+                )
+        if x is None:
+            raise ValueError("give the measured displacement x to score.")
+        if t is None:
+            raise ValueError("give the sample times t.")
+        t, x, v, u, _ = _columns(x, t, v, u, minimum=3, origin=self._t_origin)
+        u = self._input(u, t.shape[0], "score")
+        v0 = v[0] if v is not None else (x[1] - x[0]) / (t[1] - t[0])
+        xs, _ = fit.simulate(t, float(x[0]), float(v0), u)
+        return _score("x", xs, x)
+
+    def _score_system(self, x, t, u, v, electrical: Dict[str, Any]) -> Dict[str, float]:
+        states = self.states()
+        for name, value in electrical.items():
+            if value is not None and name not in states:
+                raise ValueError(
+                    f"{name}: this system's states are {states}; it was fitted without {name}, "
+                    f"so it cannot score {name}."
+                )
+        missing = [name for name in states[2:] if electrical[name] is None]
+        if missing:
+            raise ValueError(
+                f"{missing[0]}: the system has the electrical state {missing[0]}, so score needs "
+                f"the measured {missing[0]} (its first value starts the free run)."
+            )
+        if t is None:
+            raise ValueError("give the sample times t.")
+        t, columns, _ = _system_columns(x, t, v, u, None, electrical, minimum=3,
+                                        origin=self._t_origin)
+        u = self._input(columns["u"], t.shape[0], "score")
+        start, x_run = _lssi.system_start(t, columns["x"], columns["v"], columns["V"],
+                                          columns["i"])
+        sim = self._fitted().simulate(t, list(start), u)
+        sim = dict(zip(states, sim))
+        return {
+            name: _score(name, sim[name], columns[name])
+            for name in states
+            if columns.get(name) is not None
+        }
     def stream(self) -> "Stream":
         """A ``Stream`` with this fit's configuration: fed the same samples, it gives the same
         streaming model as the fit (``streaming_coefficients()``)."""
@@ -518,7 +735,10 @@ class Model:
         state: Dict[str, Any] = {"version": _PICKLE_VERSION, "options": self._option_dict(),
                                  "fit": None, "t_origin": self._t_origin}
         if self._system_path is not None:
-            state["system"] = dict(path=self._system_path, json=self.to_json())
+            state["system"] = dict(path=self._system_path, load_ohms=self._load_ohms,
+                                   json=self.to_json())
+        elif self._system_data is not None:
+            state["system_data"] = dict(self._system_data, json=self.to_json())
         elif self._fit is not None:
             if self._data is None:
                 raise TypeError(
@@ -539,12 +759,26 @@ class Model:
         self._t_origin = state.get("t_origin")
         system = state.get("system")
         if system is not None:
-            fitted = identify(system["path"], **state["options"])
+            fitted = identify(system["path"], load_ohms=system.get("load_ohms"),
+                              **state["options"])
             self._fit, self._system_path = fitted._fit, fitted._system_path
+            self._load_ohms = fitted._load_ohms
             if self._system_path is None or self.to_json() != system["json"]:
                 raise ValueError(
                     f"this lssi identifies another model from {system['path']} than the one "
                     "pickled (the file changed, or another version?): identify it again."
+                )
+            return
+        data = state.get("system_data")
+        if data is not None:
+            origin = self._t_origin
+            self.fit(data["x"], t=data["t"], v=data["v"], u=data["u"], V=data["V"],
+                     i=data["i"], load_ohms=data["load_ohms"])
+            self._t_origin = origin
+            if self.to_json() != data["json"]:
+                raise ValueError(
+                    "this lssi identifies another system from the pickled model's samples than "
+                    "the one pickled (a different version?): refit them instead of unpickling."
                 )
             return
         fit = state["fit"]
@@ -589,6 +823,12 @@ class Stream:
         self._calibrate = _integer("calibrate", calibrate, MIN_SAMPLES, 2**62)
         if like is not None and not isinstance(like, Model):
             raise TypeError(f"like must be a fitted lssi.Model, not {like!r}.")
+        if like is not None and like._is_system():
+            raise ValueError(
+                f"like: the model is a system ({', '.join(like.equations())}); a Stream "
+                "identifies the single equation x'' from x (and v, u): fit the system whole "
+                "with Model().fit(x, t=t, u=u, V=V)."
+            )
         self._raw = None if like is None else _lssi.RawStream.like(like._fitted())
         self._t_origin = None if like is None else like._t_origin
         if like is not None:
@@ -622,9 +862,24 @@ class Stream:
                     "this one has none."
                 )
 
-    def push(self, x, t=None, v=None, u=None) -> "Stream":
+    def push(self, x, t=None, v=None, u=None, V=None, i=None) -> "Stream":
         """Feeds a block: arrays (or a DataFrame with columns t, x[, v, u]) of one length.
-        The block is checked before anything is fed in (ValueError names the problem)."""
+        The block is checked before anything is fed in (ValueError names the problem).
+        A Stream identifies the single equation: an electrical channel (``V``, ``i``, as an
+        argument or a DataFrame column) is a ValueError naming it (fit a system whole with
+        ``Model().fit(..., V=V)``)."""
+        electrical = {"V": V, "i": i}
+        if _is_frame(x):
+            for name in ELECTRICAL:
+                if electrical[name] is None and name in x.columns:
+                    electrical[name] = x[name]
+        for name, value in electrical.items():
+            if value is not None:
+                raise ValueError(
+                    f"{name}: a Stream identifies the single equation x'' from x (and v, u), "
+                    f"so a block with an electrical channel {name} cannot be fed in; fit the "
+                    f"system whole with Model().fit(x, t=t, u=u, {name}={name})."
+                )
         t, x, v, u, origin = _columns(x, t, v, u, minimum=1, origin=self._t_origin)
         dates = origin is not None
         if self._t_dates is not None and dates != self._t_dates:
@@ -674,7 +929,7 @@ def read_recording(path: str):
     return _lssi.read_recording(str(path))
 
 
-def identify(path, **options) -> Model:
+def identify(path, load_ohms=None, **options) -> Model:
     """``lssi identify FILE --f64`` with the options of ``Model`` (``refine=False``:
     ``--no-refine``; ``f32=True``: ``--f32``). Returns the fitted Model; ValueError says why
     a file cannot be used.
@@ -683,13 +938,24 @@ def identify(path, **options) -> Model:
     current) is a harvester's system, as for the command: the Model holds its equations
     (``equations()``: ``{"x''": {...}, "V'": {...}}``, ``states()``: ``["x", "v", "V"]``),
     ``to_json()`` is the command's ``--json`` object, and ``simulate`` takes and returns
-    mappings of state names (systems are not refined yet: ``refine`` does not apply)."""
+    mappings of state names (systems are not refined yet: ``refine`` does not apply).
+    ``load_ohms`` (the command's ``--load-ohms``) adds the harvester in physical terms
+    (``Model.harvester()``); ``coupling_order`` is its ``--coupling-order``."""
     m = Model(**options)
-    system = _lssi.identify_system(str(path), *m._options())
+    load = _positive("load_ohms", load_ohms, "a positive resistance in ohms (or None)")
+    system = _lssi.identify_system(str(path), *m._options(), coupling_order=m.coupling_order,
+                                   load_ohms=load)
     if system is not None:
         m._fit = system
         m._system_path = str(path)
+        m._load_ohms = load
         return m
+    for name, value, default in (("load_ohms", load, None), ("coupling_order", m.coupling_order, 1)):
+        if value != default:
+            raise ValueError(
+                f"{path}: {name} applies to a recording with an electrical column (V or i), "
+                "and this one has none."
+            )
     t, x, v, u = read_recording(path)
     m._run(str(path), t, x, v, u)
     return m

@@ -6,8 +6,8 @@
         table = lssi.dask.identify_many(["a.csv", "b.csv"], client=client, harmonics=1)
 
 One task per recording, each running the same identification as ``lssi.identify`` (a file
-path) or ``Model.fit`` (a dict of arrays ``{"t": ..., "x": ..., "v": ..., "u": ...}`` or a
-pandas DataFrame): refined on simulation error by default, as ``lssi identify`` refines one
+path) or ``Model.fit`` (a dict of arrays ``{"t": ..., "x": ..., "v": ..., "u": ...}``, with
+``"V"`` or ``"i"`` for a harvester's system, or a pandas DataFrame): refined on simulation error by default, as ``lssi identify`` refines one
 recording (``refine=False``: the streaming model, as its batches report). It runs unchanged
 on a ``LocalCluster`` or a real scheduler's ``Client``.
 """
@@ -38,17 +38,21 @@ def identify_one(item: Any, name: Optional[str] = None, **options) -> Dict[str, 
         else:
             data = item
             if isinstance(item, dict):
-                data = {k: item.get(k) for k in ("x", "t", "v", "u")}
-                model = lssi.Model(**options).fit(data["x"], t=data["t"], v=data["v"], u=data["u"])
+                data = {k: item.get(k) for k in ("x", "t", "v", "u", "V", "i")}
+                model = lssi.Model(**options).fit(data["x"], t=data["t"], v=data["v"], u=data["u"],
+                                                  V=data["V"], i=data["i"])
             else:
                 model = lssi.Model(**options).fit(data)
         report = json.loads(model.to_json())
-        row.update(
-            equation=model.equation(),
-            terms=[term["term"] for term in report["terms"]],
-            coefficients={term["term"]: term["coef"] for term in report["terms"]},
-            report=report,
-        )
+        if model.is_system():
+            # A system (an electrical channel V or i): per equation, by target.
+            terms = {e["target"]: [term["term"] for term in e["terms"]] for e in report["equations"]}
+            coefficients = model.equations()
+        else:
+            terms = [term["term"] for term in report["terms"]]
+            coefficients = {term["term"]: term["coef"] for term in report["terms"]}
+        row.update(equation=model.equation(), terms=terms, coefficients=coefficients,
+                   report=report)
     except (ValueError, RuntimeError) as e:
         row["error"] = str(e)
     return row
