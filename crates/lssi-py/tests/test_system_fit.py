@@ -385,3 +385,28 @@ def test_dask_identify_one_takes_a_system(piezo, fitted):
         assert list(row["terms"]) == ["x''", "V'"]
         assert row["coefficients"] == fitted.equations()
         assert row["report"] == fitted.report()
+
+
+def test_a_dataframe_with_zoned_timestamps_and_its_pickle(fitted, piezo):
+    """Issue 25's Python points for systems: pandas Timestamps with a time zone in a
+    DataFrame's t, the model pickled with its origin, options type-checked for a system's
+    file too."""
+    path, col = piezo
+    stamps = pd.Timestamp("2026-11-26 04:00", tz="Europe/Paris") + pd.to_timedelta(col["t"], unit="s")
+    frame = pd.DataFrame({"t": stamps, "x": col["x"], "u": col["u"], "V": col["V"]})
+    m = lssi.Model().fit(frame)
+    assert m.is_system()
+    for target, terms in m.equations().items():
+        assert sorted(terms) == sorted(fitted.equations()[target])
+    back = pickle.loads(pickle.dumps(m))
+    assert back.to_json() == m.to_json()
+    n = 1000
+    a = m.simulate({"x": col["x"][0], "v": 0.0, "V": col["V"][0]}, stamps[:n], u=col["u"][:n])
+    b = back.simulate({"x": col["x"][0], "v": 0.0, "V": col["V"][0]}, stamps[:n], u=col["u"][:n])
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    with pytest.raises(TypeError, match="^omega must be"):
+        lssi.identify(path, omega="21")
+    with pytest.raises(TypeError, match="^poly_order must be"):
+        lssi.identify(path, poly_order=True)
+    with pytest.raises(TypeError, match="^load_ohms must be"):
+        lssi.identify(path, load_ohms="1e5")
