@@ -55,6 +55,8 @@ def fitted(piezo):
         ("piezo", "bistable", "xv", ["--delta", "0.05", "--seed", "3"]),
         ("electromagnetic", "monostable", "x", ["--coil", "inductive"]),
         ("electromagnetic", "monostable", "x", ["--coil", "negligible", "--delta", "0.01"]),
+        ("electromagnetic", "monostable", "x", ["--electrical", "i"]),
+        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5"]),
     ],
 )
 @pytest.mark.parametrize("f32", [False, True])
@@ -76,6 +78,33 @@ def test_fit_on_arrays_equals_identify_on_the_file(cli, tmp_path, kind, wells, o
     assert m.to_json() == expected
     # A DataFrame with the same columns gives the same system.
     assert lssi.Model(f32=f32).fit(pd.DataFrame(col)).to_json() == expected
+    if "i" in col:
+        assert list(m.equations()) == ["x''", "i'"]
+        assert m.states()[2:] == ["i"]
+
+
+def test_both_electrical_channels_as_the_command(cli, tmp_path):
+    """A recording with the load voltage V and the current i (V / R_L, 1 % noise on each):
+    three equations, as `lssi identify --json` gives for the same columns."""
+    path = tmp_path / "em.csv"
+    cli("gen", "electromagnetic", "--input", path)
+    col = columns(path)
+    rng = np.random.default_rng(11)
+    col["i"] = col["V"] / 1000.0 * (1.0 + 0.01 * rng.standard_normal(col["V"].shape))
+    both = tmp_path / "both.csv"
+    write_csv(both, col)
+    m = lssi.Model().fit(col["x"], t=col["t"], u=col["u"], V=col["V"], i=col["i"])
+    assert m.to_json() == cli("identify", both, "--json", "--f64").strip()
+    assert list(m.equations()) == ["x''", "V'", "i'"]
+    assert m.states() == ["x", "v", "V", "i"]
+    n = 2000
+    x0 = {"x": col["x"][0], "v": 0.0, "V": col["V"][0], "i": col["i"][0]}
+    out = m.simulate(x0, col["t"][:n], u=col["u"][:n])
+    assert list(out) == ["x", "v", "V", "i"]
+    score = m.score(col["x"][:n], col["t"][:n], u=col["u"][:n], V=col["V"][:n], i=col["i"][:n])
+    assert list(score) == ["x", "V", "i"]
+    with pytest.raises(ValueError, match="i: the system has the electrical state i, so score needs"):
+        m.score(col["x"][:n], col["t"][:n], u=col["u"][:n], V=col["V"][:n])
 
 
 def test_load_ohms_and_coupling_order_as_the_command(cli, piezo, tmp_path):
