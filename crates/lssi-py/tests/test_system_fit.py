@@ -439,3 +439,18 @@ def test_a_dataframe_with_zoned_timestamps_and_its_pickle(fitted, piezo):
         lssi.identify(path, poly_order=True)
     with pytest.raises(TypeError, match="^load_ohms must be"):
         lssi.identify(path, load_ohms="1e5")
+
+
+def test_a_velocity_alone_is_integrated_and_scored(cli, tmp_path):
+    """A vibrometer's velocity without a displacement: x is v integrated (the report says
+    so, as the command's), and score() scores the measured states v and V, not x."""
+    path = tmp_path / "piezo-v.csv"
+    cli("gen", "piezo", "--input", "--observe", "v", path)
+    col = columns(path)
+    assert "x" not in col
+    m = lssi.Model().fit(None, t=col["t"], v=col["v"], u=col["u"], V=col["V"])
+    assert any(w.startswith("x is v integrated") for w in m.report()["warnings"])
+    n = 4000
+    score = m.score(None, col["t"][:n], u=col["u"][:n], v=col["v"][:n], V=col["V"][:n])
+    assert list(score) == ["v", "V"]
+    assert score["v"] > 0.9 and score["V"] > 0.9, score
