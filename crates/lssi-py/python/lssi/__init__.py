@@ -675,7 +675,10 @@ class Model:
         when given): the free run from the first sample's state (as ``lssi simulate``
         starts it: v measured, or x's slope over its first samples; x integrated from v when
         x is None), driven by ``u``. Every electrical state of the model (``V``, ``i``) must
-        be given: its first value starts the run."""
+        be given: its first value starts the run. A chaotic record (a bistable harvester
+        hopping between its wells) departs from any free run after a few periods, however
+        right the model: score short spans, or compare statistics (``harvester()``'s mean
+        power)."""
         fit = self._fitted()
         if self._is_system():
             return self._score_system(x, t, u, v, {"V": V, "i": i})
