@@ -348,15 +348,9 @@ fn run_batch(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
     if let Err(e) = std::io::stdout().write_all(out.as_bytes()) {
         crate::output::fail(&e)
     }
-    let failed = results
-        .iter()
-        .filter(|r| matches!(r, Err(batch::Failure::Error(_))))
-        .count();
-    if failed > 0 {
-        return Err(CliError::Input(format!(
-            "{failed} of {} recordings could not be identified (their rows say why).",
-            files.len()
-        )));
+    // Files that failed and folders that gave no recording, named: exit status 2.
+    if let Some(sentence) = batch::failure_sentence(&files, &results) {
+        return Err(CliError::Input(sentence));
     }
     // Models withheld by the quality gate: exit status 3, each file named.
     let withheld: Vec<String> = files
