@@ -62,14 +62,17 @@ fn a_pipe_gives_the_files_model() {
             ],
         );
         let bytes = std::fs::read(&path).unwrap();
-        for format in ["--json", "--no-refine"] {
+        for format in [&[][..], &["--json"]] {
             let file = Command::new(LSSI)
-                .args(["identify", path.to_str().unwrap(), "--no-refine", format])
+                .args(["identify", path.to_str().unwrap(), "--no-refine"])
+                .args(format)
                 .output()
                 .unwrap();
             assert_eq!(file.status.code(), Some(0));
             for name in ["-", "/dev/stdin"] {
-                let pipe = piped(&["identify", name, "--no-refine", format], &bytes);
+                let mut args = vec!["identify", name, "--no-refine"];
+                args.extend(format);
+                let pipe = piped(&args, &bytes);
                 assert_eq!(
                     pipe.status.code(),
                     Some(0),
@@ -79,7 +82,7 @@ fn a_pipe_gives_the_files_model() {
                 assert_eq!(
                     String::from_utf8_lossy(&pipe.stdout),
                     String::from_utf8_lossy(&file.stdout),
-                    "{name} {format} (rate {rate}, {t_end} s)"
+                    "{name} {format:?} (rate {rate}, {t_end} s)"
                 );
             }
         }
@@ -110,9 +113,7 @@ fn a_bad_pipe_is_named_as_given() {
 fn a_big_pipe_is_streamed_as_the_file_is() {
     let dir = tempfile::tempdir().unwrap();
     let path = generate(dir.path(), &["--rate", "50000", "--t-end", "10"]);
-    assert!(
-        std::fs::metadata(&path).unwrap().len() > lssi_host::identify::stream::STREAM_BYTES
-    );
+    assert!(std::fs::metadata(&path).unwrap().len() > lssi_host::identify::stream::STREAM_BYTES);
     let file = Command::new(LSSI)
         .args(["identify", path.to_str().unwrap(), "--json"])
         .output()

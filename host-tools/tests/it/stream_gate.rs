@@ -137,7 +137,7 @@ fn small_blocks() -> StreamOptions {
     }
 }
 
-/// A 50 s bistable harvester at 2 kHz (100,001 rows, 12 blocks of 8,192) read in chunks: the
+/// A 30 s bistable harvester at 2 kHz (60,001 rows, 7 blocks of 8,192) read in chunks: the
 /// clean file passes the gate over the whole file; broken after 3 blocks (flat, noise,
 /// another harvester) it is withheld, where the gate on the first block alone (the excerpt,
 /// what the gate saw before) passes it.
@@ -149,7 +149,7 @@ fn a_file_that_breaks_after_the_excerpt_is_withheld() {
     let stream = small_blocks();
     let base = EvehOptions {
         rate: 2000.0,
-        t_end: 50.0,
+        t_end: 30.0,
         seed: 21,
         ..EvehOptions::default()
     };
@@ -163,9 +163,14 @@ fn a_file_that_breaks_after_the_excerpt_is_withheld() {
             ..base.clone()
         },
     );
-    let (_, clean) =
-        identify_file(dir.path().join("clean.csv"), &columns, &options, &stream, |_, _| {})
-            .unwrap();
+    let (_, clean) = identify_file(
+        dir.path().join("clean.csv"),
+        &columns,
+        &options,
+        &stream,
+        |_, _| {},
+    )
+    .unwrap();
     assert!(clean.streamed, "{clean:?}");
     assert!(clean.quality.passed(), "{:?}", clean.quality.failures);
     // The gate saw blocks spread over the whole file: at least gate_blocks of them, and the
@@ -173,7 +178,10 @@ fn a_file_that_breaks_after_the_excerpt_is_withheld() {
     assert!(clean.gated_blocks > stream.gate_blocks, "{clean:?}");
     assert_eq!(clean.quality.precisions_agree, Some(true));
     let after = 3 * stream.excerpt_rows;
-    for (k, kind) in [Break::Flat, Break::Noise, Break::Other].into_iter().enumerate() {
+    for (k, kind) in [Break::Flat, Break::Noise, Break::Other]
+        .into_iter()
+        .enumerate()
+    {
         let path = broken(
             dir.path(),
             &format!("{kind:?}.csv"),
@@ -188,7 +196,11 @@ fn a_file_that_breaks_after_the_excerpt_is_withheld() {
         excerpt.t.truncate(stream.excerpt_rows);
         excerpt.x.truncate(stream.excerpt_rows);
         let (_, old) = lssi_host::identify::quality::identify_checked(&excerpt, &options).unwrap();
-        assert!(old.passed(), "{kind:?}: the excerpt fails: {:?}", old.failures);
+        assert!(
+            old.passed(),
+            "{kind:?}: the excerpt fails: {:?}",
+            old.failures
+        );
         match identify_file(&path, &columns, &options, &stream, |_, _| {}) {
             // The identifier itself may refuse the file: also no model.
             Err(e) => println!("{kind:?}: refused: {e}"),

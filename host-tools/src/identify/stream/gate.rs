@@ -3,7 +3,7 @@
 //! and the blocks of [`super::sketch`], spread over the whole file.
 //!
 //! - Over the whole file: the held-out error of the file's model (the identifier's, over
-//!   every row) against the variance of its target on all the kept blocks, and the other
+//!   every row) against the variance of its target pooled over the kept blocks, and the other
 //!   precision's choice of terms (the file's other identifier).
 //! - On each kept block, as on a recording in memory: x varies, the free run stays bounded,
 //!   the short-horizon simulation follows the block, the terms are not collinear on it, it is
@@ -15,40 +15,18 @@ use lssi_core::Config;
 use super::sketch::Block;
 use crate::identify::quality::{self, MAX_UNEXPLAINED, Quality};
 use crate::identify::{Reference, Report};
-use crate::recording::Recording;
 
 /// Failing blocks named one by one in the verdict (then how many more).
 const NAMED_BLOCKS: usize = 2;
 
-/// The blocks joined in file order (with the time gaps between them: the target's windows
-/// restart there, as on a gap in a recording).
-fn joined(blocks: &[Recording]) -> Option<Recording> {
-    let first = blocks.first()?;
-    let mut all = Recording {
-        path: first.path.clone(),
-        t: Vec::new(),
-        x: Vec::new(),
-        v: first.v.as_ref().map(|_| Vec::new()),
-        u: first.u.as_ref().map(|_| Vec::new()),
-        columns: first.columns.clone(),
-    };
-    for b in blocks {
-        all.t.extend_from_slice(&b.t);
-        all.x.extend_from_slice(&b.x);
-        if let (Some(a), Some(v)) = (all.v.as_mut(), b.v.as_ref()) {
-            a.extend_from_slice(v);
-        }
-        if let (Some(a), Some(u)) = (all.u.as_mut(), b.u.as_ref()) {
-            a.extend_from_slice(u);
-        }
-    }
-    Some(all)
-}
-
 /// Where a block lies: "t = a–b s (rows i–j)".
 fn span(block: &Block) -> String {
     let t = &block.rows.t;
-    let first = t.iter().copied().find(|v| v.is_finite()).unwrap_or(f64::NAN);
+    let first = t
+        .iter()
+        .copied()
+        .find(|v| v.is_finite())
+        .unwrap_or(f64::NAN);
     let last = t
         .iter()
         .rev()
@@ -78,19 +56,42 @@ pub(super) fn judge(
         precisions_agree: None,
         failures: Vec::new(),
     };
-    let shifted: Vec<Recording> = blocks
-        .iter()
-        .map(|b| reference.shifted(&b.rows).unwrap_or_else(|| b.rows.clone()))
-        .collect();
     if report.terms.is_empty() {
         quality
             .failures
             .push("the selected model has no terms".into());
         return quality;
     }
-    // The whole file: held out error against the target's variance on every kept block.
+    // Each block: the in-memory checks that need the signal itself (the held-out check is
+    // the whole file's, below; the precisions are compared once). One block less the
+    // reference at a time: the blocks are not copied.
+    let local = Report {
+        solutions: Vec::new(),
+        ..report.clone()
+    };
+    let mut failing = Vec::new();
+    let (mut pooled, mut weight) = (0.0, 0.0);
+    for block in blocks {
+        let shifted = reference.shifted(&block.rows);
+        let rows = shifted.as_ref().unwrap_or(&block.rows);
+        // The target's variance pooled over the blocks (within each block: the target, x''
+        // over a few periods, has a mean near 0 in each).
+        if let Some(variance) = quality::target_variance(rows, config) {
+            pooled += variance * rows.len() as f64;
+            weight += rows.len() as f64;
+        }
+        let q = quality::assess(rows, config, &local, None);
+        if let Some(stable) = q.stable {
+            quality.stable = Some(quality.stable.unwrap_or(true) && stable);
+        }
+        if !q.failures.is_empty() {
+            failing.push(format!("at {}: {}", span(block), q.failures.join("; ")));
+        }
+    }
+    // The whole file: held-out error (over every row) against the target's variance on the
+    // blocks spread over it.
     let held_out = report.solutions.get(report.selected).map(|s| s.mean_error);
-    let variance = joined(&shifted).and_then(|all| quality::target_variance(&all, config));
+    let variance = (weight > 0.0).then(|| pooled / weight);
     quality.unexplained = held_out.zip(variance).map(|(e, var)| e / var);
     if let Some(r) = quality.unexplained
         && !(r <= MAX_UNEXPLAINED)
@@ -113,22 +114,6 @@ pub(super) fn judge(
                 other.precision,
                 names(other).join(", ")
             ));
-        }
-    }
-    // Each block: the in-memory checks that need the signal itself (the held-out check is
-    // the whole file's, above; the precisions were compared once).
-    let local = Report {
-        solutions: Vec::new(),
-        ..report.clone()
-    };
-    let mut failing = Vec::new();
-    for (block, rows) in blocks.iter().zip(&shifted) {
-        let q = quality::assess(rows, config, &local, None);
-        if let Some(stable) = q.stable {
-            quality.stable = Some(quality.stable.unwrap_or(true) && stable);
-        }
-        if !q.failures.is_empty() {
-            failing.push(format!("at {}: {}", span(block), q.failures.join("; ")));
         }
     }
     let more = failing.len().saturating_sub(NAMED_BLOCKS);

@@ -61,8 +61,8 @@ use crate::recording::{ColumnNames, RecordingError};
 
 use probe::refine_omega;
 pub use reader::{CsvStream, describe_file};
-pub use spool::{Input, is_stdin};
 use run::run;
+pub use spool::{Input, is_stdin};
 
 /// Probes spread evenly over a large file for the last refinement of Ω (one fewer: the
 /// end of the file is the doubling chain's last probe).

@@ -220,15 +220,8 @@ impl CsvStream {
                     header: self.header.clone(),
                 });
             }
-            let number = |index: usize| {
-                number(
-                    (&self.path, &self.file),
-                    &self.header,
-                    record,
-                    start,
-                    index,
-                )
-            };
+            let number =
+                |index: usize| number((&self.path, &self.file), &self.header, record, start, index);
             let p = self.positions;
             let sample = Sample {
                 t: number(p.t)?,
