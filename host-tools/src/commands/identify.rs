@@ -196,9 +196,16 @@ impl IdentifyArgs {
 pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     let options = args.options()?;
     args.check_track_flags()?;
+    // Standard input (`-`) or a pipe (`/dev/stdin`): spooled to a temporary file in chunks,
+    // then read as a file is (streamed when large), named as given.
+    let input = if args.more.is_empty() && !args.csv {
+        identify::stream::Input::open(&args.file)?
+    } else {
+        identify::stream::Input::plain(&args.file)
+    };
     // A recording with an electrical channel is a system (issue 26; crate::system).
     if args.more.is_empty() && !args.track && !args.csv && args.quantise.is_none() {
-        match crate::system::read_if_system(&args.file, &args.columns, &args.system.columns)? {
+        match crate::system::read_if_system(input.file(), &args.columns, &args.system.columns)? {
             Some(data) => {
                 return crate::system::identify_command(&data, &options, &args.system, args.json);
             }
@@ -213,7 +220,7 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if !args.track
         && !args.refine
         && args.quantise.is_none()
-        && identify::stream::is_large(&args.file)
+        && identify::stream::is_large(input.file())
     {
         let note = (!args.no_refine).then(|| {
             format!(
@@ -223,14 +230,15 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
             )
         });
         return identify::stream::identify_command(
-            &args.file,
+            input.file(),
+            input.name(),
             &args.columns,
             &options,
             args.json,
             note.as_deref(),
         );
     }
-    let mut recording = Recording::read(&args.file, &args.columns)?;
+    let mut recording = input.read(&args.columns)?;
     if args.quantise == Some(Quantise::I16) {
         let quantised = crate::serial::quantise::quantise(&recording).map_err(CliError::Input)?;
         eprint!("lssi: {}", quantised.summary.render());
@@ -340,15 +348,9 @@ fn run_batch(args: &IdentifyArgs, options: &Options) -> Result<(), CliError> {
     if let Err(e) = std::io::stdout().write_all(out.as_bytes()) {
         crate::output::fail(&e)
     }
-    let failed = results
-        .iter()
-        .filter(|r| matches!(r, Err(batch::Failure::Error(_))))
-        .count();
-    if failed > 0 {
-        return Err(CliError::Input(format!(
-            "{failed} of {} recordings could not be identified (their rows say why).",
-            files.len()
-        )));
+    // Files that failed and folders that gave no recording, named: exit status 2.
+    if let Some(sentence) = batch::failure_sentence(&files, &results) {
+        return Err(CliError::Input(sentence));
     }
     // Models withheld by the quality gate: exit status 3, each file named.
     let withheld: Vec<String> = files

@@ -64,6 +64,73 @@ pub fn folder_problem(path: &Path) -> Option<String> {
     }
 }
 
+/// A list of names for a sentence: "a", "a and b", "a, b and c", the first `named` then
+/// "and N more".
+fn name_list(names: &[String], named: usize) -> String {
+    let shown: Vec<&str> = names.iter().take(named).map(String::as_str).collect();
+    let more = names.len().saturating_sub(named);
+    match (shown.split_last(), more) {
+        (None, _) => String::new(),
+        (Some((last, [])), 0) => (*last).to_owned(),
+        (Some((last, rest)), 0) => format!("{} and {last}", rest.join(", ")),
+        (Some(_), more) => format!("{} and {more} more", shown.join(", ")),
+    }
+}
+
+/// The batch's closing sentence when some inputs gave no model for a reason other than the
+/// gate (exit status 2): how many of the recordings could not be identified, and each folder
+/// that gave no recording (it holds no `.csv` file, or cannot be read), named, not counted as
+/// a recording. `None` when every input gave a recording and none failed.
+pub fn failure_sentence(files: &[PathBuf], results: &[Outcome]) -> Option<String> {
+    const NAMED: usize = 5;
+    let (mut empty, mut unreadable, mut failed) = (Vec::new(), Vec::new(), Vec::new());
+    let mut recordings = 0usize;
+    for (path, result) in files.iter().zip(results) {
+        let name = path.display().to_string();
+        if path.is_dir() {
+            match csv_files(path) {
+                Err(_) => unreadable.push(name),
+                Ok(found) if found.is_empty() => empty.push(name),
+                Ok(_) => {}
+            }
+            continue;
+        }
+        recordings += 1;
+        if matches!(result, Err(Failure::Error(_))) {
+            failed.push(name);
+        }
+    }
+    let mut parts = Vec::new();
+    if !failed.is_empty() {
+        parts.push(format!(
+            "{} of {recordings} recording{} could not be identified: {}",
+            failed.len(),
+            if recordings == 1 { "" } else { "s" },
+            name_list(&failed, NAMED)
+        ));
+    }
+    let folders = |names: &[String], one: &str, many: &str| match names.len() {
+        0 => None,
+        1 => Some(format!("the folder {} {one}", names[0])),
+        _ => Some(format!("the folders {} {many}", name_list(names, NAMED))),
+    };
+    parts.extend(folders(
+        &empty,
+        "holds no .csv recording",
+        "hold no .csv recording",
+    ));
+    parts.extend(folders(&unreadable, "cannot be read", "cannot be read"));
+    if parts.is_empty() {
+        return None;
+    }
+    let rows = if failed.len() + empty.len() + unreadable.len() == 1 {
+        "its row says why"
+    } else {
+        "their rows say why"
+    };
+    Some(format!("{} ({rows}).", parts.join("; ")))
+}
+
 pub use crate::identify::pipeline::{Failure, Identified, Outcome, warnings};
 
 /// Why a model in a batch is the streaming one: refinement is not run on several recordings

@@ -216,3 +216,47 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     assert_eq!(line["terms"], v["terms"]);
     assert_eq!(line["model"], "refined");
 }
+
+/// Issue 25, 4: a batch with an empty folder (and a folder of no recordings) among its
+/// arguments gives the good files' rows, exit status 2, and a closing sentence that names
+/// each folder (not counted as a recording) and the file that failed.
+#[test]
+fn a_batch_names_an_empty_folder_in_its_closing_sentence() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = generate(dir.path(), "a.csv", &["--seed", "3"]);
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "t,x\n0,1\n").unwrap();
+    for (args, failed) in [
+        (vec![a.as_str(), arg(&empty)], None),
+        (vec![arg(&empty), a.as_str(), arg(&bad)], Some("bad.csv")),
+    ] {
+        let mut all = vec!["identify"];
+        all.extend(&args);
+        all.extend(["--csv", "--no-refine"]);
+        let out = lssi(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        let table = String::from_utf8(out.stdout).unwrap();
+        assert_eq!(table.lines().count(), 1 + args.len(), "{table}");
+        let good = table.lines().find(|l| l.starts_with(&a)).unwrap();
+        assert!(good.contains("x''"), "{good}");
+        let last = stderr.lines().last().unwrap();
+        assert!(
+            last.contains(&format!(
+                "the folder {} holds no .csv recording",
+                empty.display()
+            )),
+            "{last}"
+        );
+        match failed {
+            // The folder is not a recording: 1 of the 2 files failed, named.
+            Some(name) => assert!(
+                last.contains("1 of 2 recordings could not be identified") && last.contains(name),
+                "{last}"
+            ),
+            None => assert!(!last.contains("recordings could not"), "{last}"),
+        }
+    }
+}

@@ -87,8 +87,13 @@ fn a_batch_with_an_empty_folder_still_gives_the_good_files_rows_and_exit_2() {
             );
             assert!(!line.contains("x''"), "{line}");
         }
+        // The folders named, not counted as recordings (issue 25).
         assert!(
-            stderr(&out).contains("2 of 4 recordings could not be identified"),
+            stderr(&out).contains(&format!(
+                "the folders {} and {} hold no .csv recording",
+                empty.display(),
+                other.display()
+            )) && !stderr(&out).contains("recordings could not be identified"),
             "{}",
             stderr(&out)
         );

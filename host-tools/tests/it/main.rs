@@ -23,6 +23,7 @@ mod replay_cli;
 mod replay_link;
 mod replay_resume;
 mod spikes;
+mod stdin_input;
 mod standard_errors;
 mod stream;
 mod stream_gate;

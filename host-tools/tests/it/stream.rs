@@ -95,6 +95,7 @@ fn a_streamed_recording_gives_the_in_memory_model() {
     let stream = StreamOptions {
         excerpt_rows: 1 << 16,
         probe_rows: 1 << 12,
+        ..StreamOptions::default()
     };
     for f32 in [true, false] {
         let options = Options {
@@ -256,6 +257,7 @@ fn small_stream() -> StreamOptions {
     StreamOptions {
         excerpt_rows: 1 << 13,
         probe_rows: 1 << 11,
+        ..StreamOptions::default()
     }
 }
 
@@ -331,6 +333,7 @@ fn a_streamed_noise_file_fails_the_quality_gate() {
     let stream = StreamOptions {
         excerpt_rows: 1 << 15,
         probe_rows: 1 << 11,
+        ..StreamOptions::default()
     };
     let result = identify_file(
         &path,
@@ -343,6 +346,7 @@ fn a_streamed_noise_file_fails_the_quality_gate() {
     if let Ok((_, summary)) = result {
         assert!(summary.streamed);
         assert!(!summary.quality.passed(), "white noise passed the gate");
-        assert_eq!(summary.gated_rows, 1 << 15);
+        // The gate's blocks spread over the whole file.
+        assert!(summary.gated_blocks >= 2 && summary.gated_rows > 1 << 15);
     }
 }

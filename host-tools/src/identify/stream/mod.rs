@@ -20,14 +20,26 @@
 //! 4. The identifier takes the excerpt, then the rest of the file chunk by chunk; nothing of
 //!    the file is held but the excerpt.
 //!
+//! 5. The quality gate ([`crate::identify::quality`]) judges the whole file in the same pass
+//!    and bounded memory ([`gate`]): a second identifier in the other precision takes every
+//!    sample too, and blocks of [`StreamOptions::excerpt_rows`] rows are kept at a doubling
+//!    stride ([`sketch`]: between [`StreamOptions::gate_blocks`] and twice that, spread
+//!    evenly from the first row, and the file's last rows). The file's held-out error is
+//!    judged against its target's variance on all of them, and each is checked as a
+//!    recording in memory is (free run, short-horizon simulation, collinearity, a constant x,
+//!    a sweep): a part of the file the model does not explain withholds it, named by its
+//!    time span (exit status 3, as for a small file).
+//!
 //! Blemishes as in memory ([`crate::identify::blemish`]): the excerpt is scanned as a small
 //! file is (NaN, time gaps and spikes left out or repaired, each named); the rest goes through
 //! the spike rule on a sliding run of seven samples with the excerpt's thresholds (a spike is
 //! repaired by the cubic through its neighbours and named), and the identifier itself leaves
 //! out non-finite samples and restarts on time gaps. The configuration and the Ω probes take
-//! repaired values and clean windows only. The quality gate ([`crate::identify::quality`])
-//! runs on the excerpt (its own model, configured as the file's; the whole file is not held):
-//! a failure withholds the file's model, exit status 3, as for a small file.
+//! repaired values and clean windows only; the gate's blocks are the rows as read (the gate
+//! finds their blemishes itself, as in memory).
+//!
+//! Standard input (`lssi identify -` or `/dev/stdin` on a pipe) is spooled to a temporary
+//! file in 64 KiB chunks ([`spool`]) and then read as a file is, named as the user named it.
 //!
 //! A file that turns out to end within the excerpt is identified by
 //! [`crate::identify::identify_recording`] itself, so the result is the in-memory one.
@@ -35,9 +47,12 @@
 //! file is not refined on simulation error (the default for one file in memory): the output says
 //! so (a warning naming the file), and `--refine` reads it whole.
 
+mod gate;
 mod probe;
 mod reader;
 mod run;
+mod sketch;
+mod spool;
 
 use std::path::Path;
 
@@ -47,6 +62,7 @@ use crate::recording::{ColumnNames, RecordingError};
 use probe::refine_omega;
 pub use reader::{CsvStream, describe_file};
 use run::run;
+pub use spool::{Input, is_stdin};
 
 /// Probes spread evenly over a large file for the last refinement of Ω (one fewer: the
 /// end of the file is the doubling chain's last probe).
@@ -63,6 +79,9 @@ pub struct StreamOptions {
     pub excerpt_rows: usize,
     /// Rows of each probe that refines Ω over the whole file.
     pub probe_rows: usize,
+    /// Blocks of `excerpt_rows` rows the quality gate keeps (at least this many, at most
+    /// twice, and the file's last rows): see [`sketch`].
+    pub gate_blocks: usize,
 }
 
 impl Default for StreamOptions {
@@ -70,6 +89,7 @@ impl Default for StreamOptions {
         Self {
             excerpt_rows: 1 << 16,
             probe_rows: 1 << 13,
+            gate_blocks: 4,
         }
     }
 }
@@ -99,13 +119,15 @@ pub struct StreamSummary {
     pub excerpt_omega: Option<f64>,
     /// Probes read to refine Ω.
     pub probes: usize,
-    /// The quality gate ([`crate::identify::quality`]) on the excerpt (the whole file when it
-    /// was not streamed): the whole file is not held, so the gate's checks (which run the
-    /// identifier again in the other precision and simulate the model) are made on the
-    /// excerpt's own model, configured as the file's; a failure withholds the file's model.
+    /// The quality gate ([`crate::identify::quality`]) over the whole file ([`gate`]: the
+    /// held-out error over every row, the other precision's model over every row, and the
+    /// checks on the signal on blocks spread over the file); a failure withholds the file's
+    /// model.
     pub quality: crate::identify::quality::Quality,
-    /// Rows the gate saw.
+    /// Rows the gate's signal checks saw (all of the blocks).
     pub gated_rows: usize,
+    /// Blocks the gate checked (1 when the file was not streamed).
+    pub gated_blocks: usize,
 }
 
 /// Identifies the recording at `path` without holding it: see the module docs. `progress` is
@@ -115,14 +137,27 @@ pub fn identify_file(
     columns: &ColumnNames,
     options: &Options,
     stream: &StreamOptions,
-    mut progress: impl FnMut(u64, u64),
+    progress: impl FnMut(u64, u64),
 ) -> Result<(Report, StreamSummary), StreamError> {
     let path = path.as_ref();
-    let mut csv = CsvStream::open(path, columns)?;
+    identify_file_named(path, path, columns, options, stream, progress)
+}
+
+/// [`identify_file`] on the file at `file`, named `name` in messages and in the report (a
+/// spooled standard input is read from a temporary file and named `-`).
+pub fn identify_file_named(
+    file: &Path,
+    name: &Path,
+    columns: &ColumnNames,
+    options: &Options,
+    stream: &StreamOptions,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<(Report, StreamSummary), StreamError> {
+    let mut csv = CsvStream::open_named(file, name, columns)?;
     let excerpt = csv.read_rows(stream.excerpt_rows.max(1))?;
     if excerpt.is_empty() {
         return Err(RecordingError::NoData {
-            path: path.to_owned(),
+            path: name.to_owned(),
         }
         .into());
     }
@@ -134,10 +169,10 @@ pub fn identify_file(
             probes: 0,
             quality,
             gated_rows: excerpt.len(),
+            gated_blocks: 1,
         };
         return Ok((report, summary));
     }
-    let (_, quality) = identify::quality::identify_checked(&excerpt, options)?;
     let clock = std::time::Instant::now();
     // A large offset removed (in f64) for the configuration and Ω, as in memory; the run
     // subtracts the same reference from every sample.
@@ -149,12 +184,19 @@ pub fn identify_file(
         streamed: true,
         excerpt_omega: None,
         probes: 0,
-        gated_rows: excerpt.len(),
-        quality,
+        gated_rows: 0,
+        gated_blocks: 0,
+        quality: crate::identify::quality::Quality {
+            unexplained: None,
+            stable: None,
+            precisions_agree: None,
+            failures: Vec::new(),
+        },
     };
     if estimated {
         summary.excerpt_omega = Some(config.omega);
         let (omega, probes) = refine_omega(
+            file,
             shifted.as_ref().unwrap_or(&excerpt),
             &config,
             options,
@@ -170,11 +212,33 @@ pub fn identify_file(
         ));
     }
     drop(shifted);
-    let report = if options.f32 {
-        run::<f32>(csv, excerpt, config, estimated, &mut progress)
-    } else {
-        run::<f64>(csv, excerpt, config, estimated, &mut progress)
-    }?;
+    let pass = run(
+        csv,
+        excerpt,
+        config,
+        estimated,
+        options.f32,
+        stream.gate_blocks,
+        &mut progress,
+    )?;
+    debug(&format!("run {:?}", clock.elapsed()));
+    summary.quality = gate::judge(
+        &pass.blocks,
+        &config,
+        &pass.report,
+        pass.other.as_ref(),
+        reference,
+    );
+    summary.gated_rows = pass.blocks.iter().map(|b| b.rows.len()).sum();
+    summary.gated_blocks = pass.blocks.len();
+    debug(&format!(
+        "gate {:?}: {} blocks, {} rows",
+        clock.elapsed(),
+        summary.gated_blocks,
+        summary.gated_rows
+    ));
+    let mut report = pass.report;
+    reference.restore(&mut report);
     Ok((report, summary))
 }
 
@@ -191,9 +255,11 @@ pub fn is_large(path: &Path) -> bool {
 }
 
 /// `lssi identify FILE` for a large file: as [`crate::commands::identify::run`] prints, with a
-/// progress bar on stderr when it is a terminal.
+/// progress bar on stderr when it is a terminal. `path` is the file read, `name` what the
+/// messages call it (the same, or `-` for a spooled standard input).
 pub fn identify_command(
     path: &Path,
+    name: &Path,
     columns: &ColumnNames,
     options: &Options,
     json: bool,
@@ -213,8 +279,9 @@ pub fn identify_command(
     } else {
         ProgressBar::hidden()
     };
-    let result = identify_file(
+    let result = identify_file_named(
         path,
+        name,
         columns,
         options,
         &StreamOptions::default(),
@@ -237,14 +304,16 @@ pub fn identify_command(
             rejected
         );
     }
-    // Read in chunks, the recording is not held: the quality gate ran on the excerpt.
+    // Read in chunks, the recording is not held: the quality gate judged the whole file in
+    // the same pass (see `gate`).
     let mut warnings = identify::batch::warnings(&report);
     if !summary.quality.passed() {
         warnings.extend(summary.quality.failures.iter().cloned());
         let sentence = format!(
-            "no deterministic dynamics found in {} (its first {} rows, on which the quality gate of a file read in chunks runs): {}.",
-            path.display(),
-            summary.gated_rows,
+            "no deterministic dynamics found in {} (read in chunks: the gate judged the whole file's fit and {} stretches of {} rows spread over it): {}.",
+            name.display(),
+            summary.gated_blocks,
+            summary.gated_rows / summary.gated_blocks.max(1),
             summary.quality.failures.join("; ")
         );
         if json {

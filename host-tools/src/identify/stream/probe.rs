@@ -133,8 +133,9 @@ fn probe(path: &Path, columns: &ColumnNames, offset: u64, rows: usize) -> Option
 }
 
 /// Ω refined by phase tracking over the whole file (see the module docs); the number of
-/// probes read. `excerpt_bytes` is where the excerpt ends in the file.
+/// probes read. `excerpt_bytes` is where the excerpt ends in the file `source_file`.
 pub(super) fn refine_omega(
+    source_file: &Path,
     excerpt: &Recording,
     config: &Config,
     options: &Options,
@@ -193,7 +194,7 @@ pub(super) fn refine_omega(
     let Some(&t0) = excerpt.t.iter().find(|t| t.is_finite()) else {
         return Ok((omega0, 0));
     };
-    let size = std::fs::metadata(&excerpt.path).map_or(0, |m| m.len());
+    let size = std::fs::metadata(source_file).map_or(0, |m| m.len());
     let row_bytes = excerpt_bytes as f64 / excerpt.len() as f64;
     let probe_bytes = (row_bytes * stream.probe_rows as f64 * 1.1) as u64;
     if excerpt_bytes == 0 || size <= excerpt_bytes + probe_bytes {
@@ -215,7 +216,7 @@ pub(super) fn refine_omega(
     let mut probes = 0;
     let mut t_end = t0;
     let add = |offset: u64, rows: &mut Rows, t_end: &mut f64| -> bool {
-        let Some(recording) = probe(&excerpt.path, &excerpt.columns, offset, stream.probe_rows)
+        let Some(recording) = probe(source_file, &excerpt.columns, offset, stream.probe_rows)
         else {
             return false;
         };

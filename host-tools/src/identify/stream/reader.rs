@@ -44,7 +44,11 @@ impl<R: Read> Read for LineLimit<R> {
 /// [`crate::recording::parse_csv`] (a line longer than [`MAX_LINE`] is found when it is reached,
 /// not before the first row).
 pub struct CsvStream {
+    /// The name in messages and in the recordings read (the file's path, or what it stands
+    /// for: `-` for standard input spooled to a temporary file).
     path: PathBuf,
+    /// The file read.
+    file: PathBuf,
     csv: csv::Reader<LineLimit<BufReader<File>>>,
     pub(super) header: Vec<String>,
     positions: Positions,
@@ -106,12 +110,23 @@ fn line_at_file(path: &Path, start: u64) -> u64 {
 impl CsvStream {
     /// Opens the file at `path` and reads its header.
     pub fn open(path: impl AsRef<Path>, columns: &ColumnNames) -> Result<Self, RecordingError> {
-        let path = path.as_ref().to_owned();
+        Self::open_named(path.as_ref(), path.as_ref(), columns)
+    }
+
+    /// Opens the file at `file` and reads its header; messages (and the recordings read) name
+    /// it `name`.
+    pub fn open_named(
+        file: &Path,
+        name: &Path,
+        columns: &ColumnNames,
+    ) -> Result<Self, RecordingError> {
+        let source = file.to_owned();
+        let path = name.to_owned();
         let io_error = |source| RecordingError::Io {
             path: path.clone(),
             source,
         };
-        let file = File::open(&path).map_err(io_error)?;
+        let file = File::open(&source).map_err(io_error)?;
         let size = file.metadata().map_err(io_error)?.len();
         let limit = LineLimit {
             inner: BufReader::with_capacity(1 << 16, file),
@@ -122,12 +137,12 @@ impl CsvStream {
         let mut csv = reader_builder().has_headers(true).from_reader(limit);
         let header: Vec<String> = match csv.headers() {
             Ok(record) => record.iter().map(str::to_owned).collect(),
-            Err(error) => return Err(stream_error(&path, &csv, error, None)),
+            Err(error) => return Err(stream_error(&path, &source, &csv, error, None)),
         };
         if header.iter().all(String::is_empty) {
             return Err(RecordingError::Empty { path });
         }
-        let header_line = line_at_file(&path, 0);
+        let header_line = line_at_file(&source, 0);
         let positions = resolve_columns(&path, &header, header_line, columns)?;
         let columns = ColumnNames {
             t: header[positions.t].clone(),
@@ -137,6 +152,7 @@ impl CsvStream {
         };
         Ok(Self {
             path,
+            file: source,
             csv,
             header,
             positions,
@@ -150,6 +166,11 @@ impl CsvStream {
     /// The header names the samples come from (`v`/`u` are `Some` exactly when present).
     pub fn columns(&self) -> &ColumnNames {
         &self.columns
+    }
+
+    /// The file read (its path; [`Recording::path`] of what it reads is the name in messages).
+    pub fn file(&self) -> &Path {
+        &self.file
     }
 
     /// The file's size in bytes.
@@ -176,6 +197,7 @@ impl CsvStream {
                 Err(error) => {
                     return Err(stream_error(
                         &self.path,
+                        &self.file,
                         &self.csv,
                         error,
                         Some(&self.header),
@@ -192,13 +214,14 @@ impl CsvStream {
             let start = record.position().map_or(0, csv::Position::byte);
             if record.len() != self.header.len() {
                 return Err(RecordingError::Ragged {
-                    line: line_at_file(&self.path, start),
+                    line: line_at_file(&self.file, start),
                     path: self.path.clone(),
                     fields: record.len(),
                     header: self.header.clone(),
                 });
             }
-            let number = |index: usize| number(&self.path, &self.header, record, start, index);
+            let number =
+                |index: usize| number((&self.path, &self.file), &self.header, record, start, index);
             let p = self.positions;
             let sample = Sample {
                 t: number(p.t)?,
@@ -239,7 +262,7 @@ impl CsvStream {
 
 /// One field as a number, or the sentence saying why not.
 fn number(
-    path: &Path,
+    (path, file): (&Path, &Path),
     header: &[String],
     record: &csv::StringRecord,
     start: u64,
@@ -249,13 +272,13 @@ fn number(
     if text.is_empty() {
         return Err(RecordingError::EmptyField {
             path: path.to_owned(),
-            line: line_at_file(path, start),
+            line: line_at_file(file, start),
             column: header.get(index).cloned().unwrap_or_default(),
         });
     }
     text.parse::<f64>().map_err(|_| RecordingError::NotANumber {
         path: path.to_owned(),
-        line: line_at_file(path, start),
+        line: line_at_file(file, start),
         column: header.get(index).cloned().unwrap_or_default(),
         text: text.to_owned(),
     })
@@ -263,6 +286,7 @@ fn number(
 
 fn stream_error(
     path: &Path,
+    file: &Path,
     csv: &csv::Reader<LineLimit<BufReader<File>>>,
     error: csv::Error,
     header: Option<&[String]>,
@@ -272,7 +296,7 @@ fn stream_error(
         let line = csv.get_ref().line;
         return RecordingError::LineTooLong { path, line };
     }
-    let line = line_at_file(&path, error.position().map_or(0, csv::Position::byte));
+    let line = line_at_file(file, error.position().map_or(0, csv::Position::byte));
     match error.into_kind() {
         csv::ErrorKind::Io(source) => RecordingError::Io { path, source },
         csv::ErrorKind::Utf8 { err, .. } => RecordingError::NotText {

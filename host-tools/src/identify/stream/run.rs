@@ -3,34 +3,90 @@
 
 use lssi_core::{Config, Identifier, Real};
 
+use super::sketch::{Block, Sketch};
 use super::{CsvStream, NAMED_REJECTIONS, StreamError};
 use crate::identify::blemish::Feed;
 use crate::identify::{self, IdentifyError, Report, TERM_CAPACITY, WINDOW_CAPACITY};
 use crate::recording::{Recording, Sample};
 
-/// The identifier over the excerpt, then over the rest of the stream.
-pub(super) fn run<T: Real>(
+/// What one pass over the file gives: the model in the precision asked for and in the other
+/// one (both before the reference is put back: see [`identify::Reference::restore`]), and
+/// the blocks the gate judges.
+pub(super) struct Pass {
+    pub(super) report: Report,
+    pub(super) other: Option<Report>,
+    pub(super) blocks: Vec<Block>,
+}
+
+type Id<T> = Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY>;
+
+/// One precision's identifier fed a sample less the reference.
+fn feed<T: Real>(
+    identifier: &mut Id<T>,
+    s: &Sample,
+    reference: identify::Reference,
+) -> Result<bool, lssi_core::Rejection> {
+    identifier.push(lssi_core::Sample {
+        t: s.t,
+        x: T::from_f64(s.x - reference.x),
+        v: s.v.map(|v| T::from_f64(v - reference.v)),
+        u: s.u.map(T::from_f64),
+    })
+}
+
+/// The model of one identifier, reported.
+fn finish<T: Real>(
+    identifier: &mut Id<T>,
+    file: &str,
+    config: &Config,
+    omega_estimated: bool,
+    blemished: u64,
+) -> Result<Report, IdentifyError> {
+    identifier.screen();
+    let counters = *identifier.counters();
+    let model = identifier.model().ok_or_else(|| {
+        IdentifyError(format!(
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            counters.accepted,
+            counters.rejected(),
+            identifier.library().len()
+        ))
+    })?;
+    Ok(identify::report(
+        model,
+        config,
+        omega_estimated,
+        counters.rejected() + blemished,
+        std::any::type_name::<T>(),
+    ))
+}
+
+/// The identifiers (f32 and f64) over the excerpt, then over the rest of the stream, and the
+/// gate's blocks kept on the way (see [`super::sketch`]). `f32`: the precision asked for.
+pub(super) fn run(
     mut csv: CsvStream,
     excerpt: Recording,
     config: Config,
     omega_estimated: bool,
+    f32: bool,
+    gate_blocks: usize,
     progress: &mut impl FnMut(u64, u64),
-) -> Result<Report, StreamError> {
+) -> Result<Pass, StreamError> {
     let file = excerpt.path.display().to_string();
-    let mut identifier: Identifier<T, WINDOW_CAPACITY, TERM_CAPACITY> =
-        Identifier::new(config).map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
+    let new_error = |e: lssi_core::ConfigError| IdentifyError(format!("{file}: {e}."));
+    let mut single: Box<Id<f32>> = Box::new(Identifier::new(config).map_err(new_error)?);
+    let mut double: Box<Id<f64>> = Box::new(Identifier::new(config).map_err(new_error)?);
     let mut rejections = Vec::new();
     // A large offset removed in f64 before the conversion to T, as in memory (the excerpt's
     // first rows give the reference).
     let reference = identify::Reference::of(&excerpt);
     let mut push = |i: usize, s: Sample| {
-        let sample = lssi_core::Sample {
-            t: s.t,
-            x: T::from_f64(s.x - reference.x),
-            v: s.v.map(|v| T::from_f64(v - reference.v)),
-            u: s.u.map(T::from_f64),
-        };
-        if let Err(why) = identifier.push(sample)
+        // Both precisions take every sample; the one asked for names what it rejects.
+        let (a, b) = (
+            feed(&mut single, &s, reference),
+            feed(&mut double, &s, reference),
+        );
+        if let Err(why) = if f32 { a } else { b }
             && rejections.len() < NAMED_REJECTIONS
         {
             rejections.push(format!(
@@ -77,9 +133,13 @@ pub(super) fn run<T: Real>(
         .collect();
     drop(channels);
     let mut spikes = SpikeRepair::new(limits, scan.dt);
+    // The gate's blocks: the excerpt is the first; the rows as read (the gate finds their
+    // blemishes itself, as in memory).
+    let mut sketch = Sketch::new(&excerpt, excerpt.len(), gate_blocks);
     let mut i = excerpt.len();
     drop(excerpt);
     while let Some(s) = csv.next_sample()? {
+        sketch.push(s);
         if let Some((j, out, spike)) = spikes.push(i, s) {
             if let Some(value) = spike {
                 blemished += 1;
@@ -102,27 +162,17 @@ pub(super) fn run<T: Real>(
         push(j, out);
     }
     progress(csv.size(), csv.size());
-    identifier.screen();
-    let counters = *identifier.counters();
-    let model = identifier.model().ok_or_else(|| {
-        IdentifyError(format!(
-            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
-            counters.accepted,
-            counters.rejected(),
-            identifier.library().len()
-        ))
-    })?;
-    let mut report = identify::report(
-        model,
-        &config,
-        omega_estimated,
-        counters.rejected() + blemished,
-        std::any::type_name::<T>(),
-    );
+    let a = finish(&mut single, &file, &config, omega_estimated, blemished);
+    let b = finish(&mut double, &file, &config, omega_estimated, blemished);
+    let (report, other) = if f32 { (a, b) } else { (b, a) };
+    let mut report = report?;
     notes.extend(rejections);
     report.rejections = notes;
-    reference.restore(&mut report);
-    Ok(report)
+    Ok(Pass {
+        report,
+        other: other.ok(),
+        blocks: sketch.finish(),
+    })
 }
 
 /// The spike rule on a stream: samples go through a run of seven; the middle one is a spike

@@ -1,0 +1,130 @@
+//! The quality gate over a whole streamed file ([`crate::identify::quality`]), from what one
+//! pass keeps: the file's model in both precisions (two identifiers fed the same samples)
+//! and the blocks of [`super::sketch`], spread over the whole file.
+//!
+//! - Over the whole file: the held-out error of the file's model (the identifier's, over
+//!   every row) against the variance of its target pooled over the kept blocks, and the other
+//!   precision's choice of terms (the file's other identifier).
+//! - On each kept block, as on a recording in memory: x varies, the free run stays bounded,
+//!   the short-horizon simulation follows the block, the terms are not collinear on it, it is
+//!   not a sweep. A block that fails withholds the model, its time span named: the file's
+//!   model must explain every part of it that the gate sees, not only the first rows.
+
+use lssi_core::Config;
+
+use super::sketch::Block;
+use crate::identify::quality::{self, MAX_UNEXPLAINED, Quality};
+use crate::identify::{Reference, Report};
+
+/// Failing blocks named one by one in the verdict (then how many more).
+const NAMED_BLOCKS: usize = 2;
+
+/// Where a block lies: "t = a–b s (rows i–j)".
+fn span(block: &Block) -> String {
+    let t = &block.rows.t;
+    let first = t
+        .iter()
+        .copied()
+        .find(|v| v.is_finite())
+        .unwrap_or(f64::NAN);
+    let last = t
+        .iter()
+        .rev()
+        .copied()
+        .find(|v| v.is_finite())
+        .unwrap_or(f64::NAN);
+    format!(
+        "t = {first}–{last} s (data rows {}–{})",
+        block.first_row + 1,
+        block.first_row + block.rows.len()
+    )
+}
+
+/// The gate over the whole file: see the module docs. `report` and `other` are the file's
+/// models (in the precision asked for and the other one) before the reference is put back,
+/// `reference` what was subtracted from every sample.
+pub(super) fn judge(
+    blocks: &[Block],
+    config: &Config,
+    report: &Report,
+    other: Option<&Report>,
+    reference: Reference,
+) -> Quality {
+    let mut quality = Quality {
+        unexplained: None,
+        stable: None,
+        precisions_agree: None,
+        failures: Vec::new(),
+    };
+    if report.terms.is_empty() {
+        quality
+            .failures
+            .push("the selected model has no terms".into());
+        return quality;
+    }
+    // Each block: the in-memory checks that need the signal itself (the held-out check is
+    // the whole file's, below; the precisions are compared once). One block less the
+    // reference at a time: the blocks are not copied.
+    let local = Report {
+        solutions: Vec::new(),
+        ..report.clone()
+    };
+    let mut failing = Vec::new();
+    let (mut pooled, mut weight) = (0.0, 0.0);
+    for block in blocks {
+        let shifted = reference.shifted(&block.rows);
+        let rows = shifted.as_ref().unwrap_or(&block.rows);
+        // The target's variance pooled over the blocks (within each block: the target, x''
+        // over a few periods, has a mean near 0 in each).
+        if let Some(variance) = quality::target_variance(rows, config) {
+            pooled += variance * rows.len() as f64;
+            weight += rows.len() as f64;
+        }
+        let q = quality::assess(rows, config, &local, None);
+        if let Some(stable) = q.stable {
+            quality.stable = Some(quality.stable.unwrap_or(true) && stable);
+        }
+        if !q.failures.is_empty() {
+            failing.push(format!("at {}: {}", span(block), q.failures.join("; ")));
+        }
+    }
+    // The whole file: held-out error (over every row) against the target's variance on the
+    // blocks spread over it.
+    let held_out = report.solutions.get(report.selected).map(|s| s.mean_error);
+    let variance = (weight > 0.0).then(|| pooled / weight);
+    quality.unexplained = held_out.zip(variance).map(|(e, var)| e / var);
+    if let Some(r) = quality.unexplained
+        && !(r <= MAX_UNEXPLAINED)
+    {
+        quality.failures.push(format!(
+            "the model leaves {:.0} % of the variance of x'' unexplained on held-out data over the whole file (at most {:.0} % allowed)",
+            100.0 * r,
+            100.0 * MAX_UNEXPLAINED
+        ));
+    }
+    if let Some(other) = other {
+        let names = |r: &Report| r.terms.iter().map(|t| t.term.clone()).collect::<Vec<_>>();
+        let agree = names(report) == names(other);
+        quality.precisions_agree = Some(agree);
+        if !agree {
+            quality.failures.push(format!(
+                "{} selects {} but {} selects {}",
+                report.precision,
+                names(report).join(", "),
+                other.precision,
+                names(other).join(", ")
+            ));
+        }
+    }
+    let more = failing.len().saturating_sub(NAMED_BLOCKS);
+    let checked = blocks.len();
+    quality
+        .failures
+        .extend(failing.into_iter().take(NAMED_BLOCKS));
+    if more > 0 {
+        quality.failures.push(format!(
+            "and {more} more of the {checked} stretches the gate checked fail"
+        ));
+    }
+    quality
+}
