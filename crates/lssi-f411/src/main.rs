@@ -397,6 +397,7 @@ fn TIM2() {
                     x: f32::NAN,
                     v: None,
                     u: None,
+                    e: None,
                 };
                 return sensor.sampler.convert(stamp, idle, &SHARED);
             }
@@ -415,6 +416,7 @@ fn TIM2() {
                 x,
                 v: None,
                 u: None,
+                e: None,
             };
             sensor.sampler.convert(stamp, reading, &SHARED)
         } else {

@@ -416,6 +416,7 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
             x: s.x as f32,
             v: None,
             u: None,
+            e: None,
         };
         sampler.tick(i as u32, reading, &shared.counters);
         while let Some(event) = consumer.dequeue() {

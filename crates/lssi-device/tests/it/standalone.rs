@@ -89,6 +89,7 @@ fn run(
                 x: reading(i),
                 v: None,
                 u: None,
+                e: None,
             },
             &shared.counters,
         );
@@ -302,6 +303,7 @@ fn a_decimating_sampler_queues_one_row_every_factor_conversions() {
                 x,
                 v: None,
                 u: None,
+                e: None,
             },
             &counters.counters,
         ) {
@@ -411,6 +413,7 @@ fn windows(
             x: reading(i),
             v: None,
             u: None,
+            e: None,
         };
         if sampler.convert(clock.now(), reading, shared) {
             identify.run(shared, &clock);

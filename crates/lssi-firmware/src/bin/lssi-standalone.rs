@@ -13,6 +13,11 @@
 //!
 //! When the recording ends, the last model (a screening of every sample, as `lssi identify`
 //! makes) and a Health frame go out, the UART drains and QEMU exits with status 0.
+//!
+//! Built with the `system` feature, it is the two-channel instrument: each conversion reads
+//! x and the voltage V across the harvester's load (the recording's electrical channel),
+//! both decimated to rows, and lssi-core's `SystemIdentifier` identifies x'' and V'
+//! (`SystemModel` frames; a stored or host's `ConfigureSystem`).
 
 #![no_std]
 #![no_main]
@@ -25,29 +30,100 @@ use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
-use lssi_core::{Config, Snapshot};
+use lssi_core::Config;
 use lssi_device::decimate::{self, Decimator};
-use lssi_device::standalone::{Clock, Engine, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
-use lssi_device::{DEFAULT_TERMS, Transport, wire};
+use lssi_device::standalone::{Clock, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
+use lssi_device::{DEFAULT_TERMS, Transport};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{CHANNELS, WINDOW, platform, uart};
 use lssi_proto::{HostMsg, WireDuty, decode_frame};
 
-type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+/// One equation (x'' from x): the default image.
+#[cfg(not(feature = "system"))]
+mod flavour {
+    use lssi_core::{Config, Snapshot};
+    use lssi_device::DEFAULT_TERMS;
+    use lssi_device::standalone::Engine;
+    use lssi_firmware::{CHANNELS, WINDOW};
+    use lssi_proto::{HostMsg, WireDuty};
+
+    pub type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+    pub type Shot = Snapshot<f32, DEFAULT_TERMS>;
+    pub type IdConfig = Config;
+    pub const EMPTY: Shot = Snapshot::empty();
+
+    /// The image's configuration for the recording's channels.
+    pub fn config(base: Config) -> IdConfig {
+        base
+    }
+
+    pub fn base(config: &mut IdConfig) -> &mut Config {
+        config
+    }
+
+    pub fn from_host(message: HostMsg) -> Option<(IdConfig, Option<WireDuty>)> {
+        match message {
+            HostMsg::Configure(c) => Some((lssi_device::wire::config_from_wire(&c), c.duty)),
+            _ => None,
+        }
+    }
+}
+
+/// A system (x'' and V' from x and V): the `system` feature's image.
+#[cfg(feature = "system")]
+mod flavour {
+    use lssi_core::library::Electrical;
+    use lssi_core::{Config, SystemConfig};
+    use lssi_device::DEFAULT_TERMS;
+    use lssi_device::standalone::{SystemEngine, SystemShot};
+    use lssi_firmware::{CHANNELS, WINDOW};
+    use lssi_proto::{HostMsg, WireDuty};
+
+    pub type Id = SystemEngine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+    pub type Shot = SystemShot<DEFAULT_TERMS>;
+    pub type IdConfig = SystemConfig;
+    pub const EMPTY: Shot = SystemShot::snapshot();
+
+    /// The image's configuration: the voltage as the electrical channel, coupling terms of
+    /// degree 1 (`lssi identify`'s default).
+    pub fn config(base: Config) -> IdConfig {
+        SystemConfig {
+            base,
+            electrical: [Some(Electrical::Voltage), None],
+            coupling_order: 1,
+        }
+    }
+
+    pub fn base(config: &mut IdConfig) -> &mut Config {
+        &mut config.base
+    }
+
+    pub fn from_host(message: HostMsg) -> Option<(IdConfig, Option<WireDuty>)> {
+        match message {
+            HostMsg::ConfigureSystem(c) => Some((
+                lssi_device::system::system_config_from_wire(&c),
+                c.base.duty,
+            )),
+            _ => None,
+        }
+    }
+}
+
+use flavour::{EMPTY, Id, IdConfig, Shot};
 
 /// Bytes the receive ring holds (one more slot than that).
 const RX_SLOTS: usize = 257;
 /// Bytes the transmit ring holds (one more slot than that): two Model frames.
 const TX_SLOTS: usize = 1537;
 
-static SHARED: Shared<DEFAULT_TERMS> = Shared::new();
+static SHARED: Shared<DEFAULT_TERMS, Shot> = Shared::new();
 #[allow(unsafe_code)]
 #[unsafe(link_section = ".bss.lssi.ENGINE")]
-static ENGINE: TakeOnce<Id> = TakeOnce::new(Engine::new());
+static ENGINE: TakeOnce<Id> = TakeOnce::new(Id::new());
 #[allow(unsafe_code)]
 #[unsafe(link_section = ".bss.lssi.SNAPSHOT")]
-static SNAPSHOT: TakeOnce<Snapshot<f32, DEFAULT_TERMS>> = TakeOnce::new(Snapshot::empty());
+static SNAPSHOT: TakeOnce<Shot> = TakeOnce::new(EMPTY);
 static QUEUE: TakeOnce<EventQueue> = TakeOnce::new(Queue::new());
 static RX: TakeOnce<Queue<u8, RX_SLOTS>> = TakeOnce::new(Queue::new());
 static TX: TakeOnce<Queue<u8, TX_SLOTS>> = TakeOnce::new(Queue::new());
@@ -60,7 +136,7 @@ struct Sensor {
 }
 
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: IdentifyTask<WINDOW, DEFAULT_TERMS, CHANNELS> = IdentifyTask::new();
+static IDENTIFY: IdentifyTask<WINDOW, DEFAULT_TERMS, CHANNELS, Id> = IdentifyTask::new();
 static RX_IN: Mutex<RefCell<Option<Producer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 /// The TX interrupt found the ring empty: the next write must start it again.
@@ -109,11 +185,12 @@ fn default_config(adc_hz: f64) -> Config {
 
 /// Configures `engine` with `config`, its rows decimated from the ADC's `adc_hz` (a whole
 /// number of conversions a row); the decimator, or `None` if either is refused.
-fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> {
-    let Some(d) = decimate::factor_for(adc_hz, config.sample_period) else {
+fn configure(engine: &mut Id, adc_hz: f64, mut config: IdConfig) -> Option<Decimator> {
+    let period = flavour::base(&mut config).sample_period;
+    let Some(d) = decimate::factor_for(adc_hz, period) else {
         defmt::warn!(
             "a row period of {=f64} s is no whole number of conversions at {=f64} Hz",
-            config.sample_period,
+            period,
             adc_hz
         );
         return None;
@@ -130,15 +207,15 @@ fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> 
 
 /// The stored configuration (a host's `Configure` frame) and its duty cycle, if there is a
 /// valid one.
-fn stored_config(recording: &Recording) -> Option<(Config, Option<WireDuty>)> {
+fn stored_config(recording: &Recording) -> Option<(IdConfig, Option<WireDuty>)> {
     let mut buffer = [0u8; mps2::MAX_CONFIG];
     let frame = recording.config_frame(&mut buffer);
     if frame.is_empty() {
         return None;
     }
-    match decode_frame::<HostMsg>(frame) {
-        Ok(HostMsg::Configure(c)) => Some((wire::config_from_wire(&c), c.duty)),
-        _ => {
+    match decode_frame::<HostMsg>(frame).ok().and_then(flavour::from_host) {
+        Some(stored) => Some(stored),
+        None => {
             defmt::warn!("the stored configuration does not decode: using the image's");
             None
         }
@@ -171,19 +248,19 @@ fn main() -> ! {
         platform::exit(platform::EXIT_PANIC)
     };
     let (mut config, duty) = stored_config(&recording).map_or_else(
-        || (default_config(recording.rate_hz), None),
+        || (flavour::config(default_config(recording.rate_hz)), None),
         |(c, d)| (c, d),
     );
-    config.channels.velocity = recording.velocity;
-    config.channels.input = recording.input;
+    flavour::base(&mut config).channels.velocity = recording.velocity;
+    flavour::base(&mut config).channels.input = recording.input;
     let rate = recording.rate_hz;
     let decimator = match configure(engine, rate, config) {
         Some(d) => d,
         None => {
             defmt::warn!("using the image's configuration");
-            config = default_config(rate);
-            config.channels.velocity = recording.velocity;
-            config.channels.input = recording.input;
+            config = flavour::config(default_config(rate));
+            flavour::base(&mut config).channels.velocity = recording.velocity;
+            flavour::base(&mut config).channels.input = recording.input;
             let Some(d) = configure(engine, rate, config) else {
                 platform::exit(platform::EXIT_PANIC)
             };
@@ -206,7 +283,8 @@ fn main() -> ! {
         RX_IN.borrow_ref_mut(cs).replace(rx_in);
         TX_OUT.borrow_ref_mut(cs).replace(tx_out);
     });
-    let row_hz = 1.0 / config.sample_period;
+    let base = *flavour::base(&mut config);
+    let row_hz = 1.0 / base.sample_period;
     defmt::info!(
         "lssi standalone: {=u32} conversions at {=f64} Hz, decimated by {=u32} (CIC order {=u8}) to rows at {=f64} Hz, window {=usize}, screening every {=u32}",
         recording.len,
@@ -214,10 +292,10 @@ fn main() -> ! {
         decimator.factor(),
         decimator.order(),
         row_hz,
-        config.window,
-        config.screening_period
+        base.window,
+        base.screening_period
     );
-    let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS> =
+    let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot> =
         Reporter::new(config, row_hz as f32, BoardClock::HZ);
     reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
     // A duty cycle: windows of identification, Model and Health at the end of each, the
@@ -290,7 +368,7 @@ fn main() -> ! {
 }
 
 /// The recording is done: waits for the UART to send everything, logs the figures, exits.
-fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
+fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
     while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
         cortex_m::asm::wfi();
     }
