@@ -78,7 +78,10 @@ fn image(points: &[PiezoPoint], config: &SystemConfig) -> Vec<u8> {
     let mut frame = [0u8; MAX_HOST_FRAME_LEN];
     let wire = system_config_to_wire(config).expect("fits the wire");
     let len = encode(&HostMsg::ConfigureSystem(wire), &mut frame).expect("encodes");
-    assert!(len <= 256 - 28, "a {len}-byte frame does not fit the header");
+    assert!(
+        len <= 256 - 28,
+        "a {len}-byte frame does not fit the header"
+    );
     let mut out = Vec::with_capacity(256 + 8 * points.len());
     out.extend_from_slice(b"LSSIREC1");
     out.extend_from_slice(&4u32.to_le_bytes());
@@ -96,10 +99,7 @@ fn image(points: &[PiezoPoint], config: &SystemConfig) -> Vec<u8> {
 
 /// The host's f32 system identifier over the rows the device makes: its scheduled models and
 /// the final one.
-fn host(
-    config: SystemConfig,
-    rows: &[(f64, f32, f32)],
-) -> (Vec<SystemSnapshot>, SystemSnapshot) {
+fn host(config: SystemConfig, rows: &[(f64, f32, f32)]) -> (Vec<SystemSnapshot>, SystemSnapshot) {
     let mut id: Box<SystemIdentifier<f32, W, P, 2, C>> =
         Box::new(SystemIdentifier::new(config).expect("a valid configuration"));
     let mut scheduled = Vec::new();
@@ -171,7 +171,10 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         .args(["-icount", "shift=4,sleep=off", "-kernel"])
         .arg(&elf)
         .arg("-device")
-        .arg(format!("loader,file={},addr=0x21000000", recording.display()))
+        .arg(format!(
+            "loader,file={},addr=0x21000000",
+            recording.display()
+        ))
         .arg("-serial")
         .arg(format!("file:{}", uart.display()))
         .output()
@@ -196,7 +199,9 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
     }) else {
         panic!("no Health in {} frames", messages.len());
     };
-    println!("device: {samples} rows at {rate} Hz, {overruns} overruns, {skipped} screenings skipped");
+    println!(
+        "device: {samples} rows at {rate} Hz, {overruns} overruns, {skipped} screenings skipped"
+    );
     assert_eq!(overruns, 0, "conversions lost");
     assert_eq!(samples, rows.len() as u64, "rows");
     assert!((f64::from(rate) - ROW_HZ).abs() < 1e-3, "row rate {rate}");
@@ -216,7 +221,11 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         }
     }
     if skipped == 0 {
-        assert_eq!(got_scheduled.len(), want_scheduled.len(), "scheduled models");
+        assert_eq!(
+            got_scheduled.len(),
+            want_scheduled.len(),
+            "scheduled models"
+        );
         for (g, w) in got_scheduled.iter().zip(&want_scheduled) {
             assert_eq!(bits(g), bits(w), "a scheduled model");
         }
@@ -238,10 +247,16 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         .map(|&t| state_term_from_code(t).expect("a term"))
         .collect();
     let coefficient = |k: usize, term: StateTerm| {
-        let j = terms.iter().position(|&t| t == term).expect("in the library");
+        let j = terms
+            .iter()
+            .position(|&t| t == term)
+            .expect("in the library");
         f64::from(got.equations[k].coefficients[j])
     };
-    assert_eq!(target_from_wire(got.equations[0].target), Target::Acceleration);
+    assert_eq!(
+        target_from_wire(got.equations[0].target),
+        Target::Acceleration
+    );
     assert_eq!(
         target_from_wire(got.equations[1].target),
         Target::Rate(Electrical::Voltage)
@@ -264,8 +279,15 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         ("χ (x'' on V)", e, piezo.chi),
         ("c (x'' on v)", v, piezo.c),
         ("k1 (x'' on x)", StateTerm::Monomial([1, 0, 0, 0]), piezo.k1),
-        ("k3 (x'' on x^3)", StateTerm::Monomial([3, 0, 0, 0]), piezo.k3),
+        (
+            "k3 (x'' on x^3)",
+            StateTerm::Monomial([3, 0, 0, 0]),
+            piezo.k3,
+        ),
     ] {
-        println!("{what}: {:.5} on the device, {truth} true", coefficient(0, term));
+        println!(
+            "{what}: {:.5} on the device, {truth} true",
+            coefficient(0, term)
+        );
     }
 }

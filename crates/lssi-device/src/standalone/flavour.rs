@@ -104,11 +104,9 @@ impl<const P: usize> Screening for lssi_core::SystemSnapshot<f32, P, 2> {
 
     fn from_host(message: &HostMsg) -> Option<FromHost<lssi_core::SystemConfig>> {
         match message {
-            HostMsg::ConfigureSystem(w) => Some((
-                crate::system::system_config_from_wire(w),
-                w.base.duty,
-                None,
-            )),
+            HostMsg::ConfigureSystem(w) => {
+                Some((crate::system::system_config_from_wire(w), w.base.duty, None))
+            }
             _ => None,
         }
     }

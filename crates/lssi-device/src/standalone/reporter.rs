@@ -1,8 +1,8 @@
 //! Thread mode's part: the screening, the reports and the host's commands.
 
 use super::{Clock, FromHost, Schedule, Screening, Shared};
-use crate::decimate::{Decimator, factor_for};
 use crate::Transport;
+use crate::decimate::{Decimator, factor_for};
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
 use lssi_core::Snapshot;

@@ -207,7 +207,10 @@ impl<'q> Sampler<'q> {
             }
             channels += 1;
         }
-        let Some(row) = self.decimator.push_channels(values, channels.min(values.len())) else {
+        let Some(row) = self
+            .decimator
+            .push_channels(values, channels.min(values.len()))
+        else {
             return false;
         };
         let mut next = 1;

@@ -102,7 +102,7 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     pub(super) full: Mutex<Cell<Option<Taken<S>>>>,
     /// A configuration for the identify task to apply before its next sample, with the
     /// time of row 0 (the decimator's delay).
-    pub(super) pending: Mutex<Cell<Option<(S::Config, f64)>>>,
+    pub(super) pending: Mutex<Cell<Option<Pending<S>>>>,
     /// A decimator for the sampling interrupt to put in before its next conversion.
     pub(super) decimator: Mutex<Cell<Option<Decimator>>>,
     /// A duty cycle for the sampling interrupt to follow from its next conversion.
@@ -113,6 +113,9 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     pub(super) status: Mutex<Cell<Status>>,
 }
+
+/// A configuration for the identify task, with the time of row 0.
+pub(super) type Pending<S> = (<S as Screening>::Config, f64);
 
 /// A snapshot taken for a screening, with why it was taken and whether it ends a duty
 /// cycle's window.

@@ -164,6 +164,9 @@ static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
 static AWAKE_MAX_ENDED: AtomicU32 = AtomicU32::new(0);
 /// `wfi`s executed (wake-ups).
 static SLEEPS: AtomicU32 = AtomicU32::new(0);
+/// Clock ticks awake while sampling, all wake-ups together (what the energy figure of
+/// scripts/firmware-bench.sh takes: rows, conversions, frames and screenings).
+static AWAKE_TOTAL: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
 /// The clock when the core last woke.
 static WOKE: AtomicU32 = AtomicU32::new(0);
 /// TIMER0's interrupts so far (conversions, or their times in an interval): the slicer
@@ -242,7 +245,10 @@ fn stored_config(recording: &Recording) -> Option<(IdConfig, Option<WireDuty>)> 
     if frame.is_empty() {
         return None;
     }
-    match decode_frame::<HostMsg>(frame).ok().and_then(flavour::from_host) {
+    match decode_frame::<HostMsg>(frame)
+        .ok()
+        .and_then(flavour::from_host)
+    {
         Some(stored) => Some(stored),
         None => {
             defmt::warn!("the stored configuration does not decode: using the image's");
@@ -430,6 +436,11 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
         reporter.screen_cost_max(),
         SLICES.load(Ordering::Relaxed)
     );
+    defmt::info!(
+        "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
+        critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
+        TICKS.load(Ordering::Relaxed)
+    );
     platform::exit(platform::EXIT_SUCCESS)
 }
 
@@ -441,6 +452,10 @@ fn sleep() {
         AWAKE_MAX_ENDED.fetch_max(awake, Ordering::Relaxed);
     } else {
         AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
+        critical_section::with(|cs| {
+            let total = AWAKE_TOTAL.borrow(cs);
+            total.set(total.get() + u64::from(awake));
+        });
     }
     SLEEPS.fetch_add(1, Ordering::Relaxed);
     cortex_m::asm::wfi();
