@@ -13,7 +13,13 @@
 //! | TIM2 update | 0x00 | one ADC conversion → the decimator; a row (every 50) → the 64-place queue, pends EXTI1 |
 //! | USART1 | 0x40 | RX bytes into a ring; TX ring out on TXE |
 //! | EXTI1 (pended) | 0x80 | queue → identifier rows; the snapshot at a screening point |
+//! | SysTick (the slicer) | 0xF0 | thread mode awake for a slice: `wfi` until the next row |
 //! | thread mode | lowest | screening on the snapshot, frames, host commands, `wfi` |
+//!
+//! The screening is spread over rows (no long wake-up): past [`SLICE_TICKS`] awake, the
+//! slicer sleeps until a row period of conversions has passed and lets thread mode go on;
+//! the same code on the same snapshot, so the same model (see crates/lssi-firmware's
+//! lssi-standalone, where QEMU measures it).
 //!
 //! At power-up it starts from the configuration a host last sent (kept in flash sector 7,
 //! [`store`]), or else from the image's own.
@@ -43,7 +49,9 @@ use core::sync::atomic::{AtomicU32, Ordering};
 #[cfg(not(feature = "netduinoplus2"))]
 use cortex_m::peripheral::DWT;
 use cortex_m::peripheral::NVIC;
-use cortex_m_rt::entry;
+use cortex_m::peripheral::scb::SystemHandler;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use defmt_rtt as _;
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -54,6 +62,8 @@ use lssi_device::standalone::{
     Clock, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use panic_probe as _;
+#[cfg(feature = "system")]
+use stm32f4xx_hal::gpio::PA1;
 #[cfg(not(feature = "netduinoplus2"))]
 use stm32f4xx_hal::{
     adc::{
@@ -63,8 +73,6 @@ use stm32f4xx_hal::{
     flash::LockedFlash,
     pac::ADC1,
 };
-#[cfg(feature = "system")]
-use stm32f4xx_hal::gpio::PA1;
 use stm32f4xx_hal::{
     gpio::{Analog, PA0},
     pac::{self, Interrupt, TIM2, USART1, interrupt},
@@ -162,6 +170,13 @@ static IDENTIFY: IdentifyTask<W, P, C, Id> = IdentifyTask::new();
 static UART: Mutex<RefCell<Option<Uart>>> = Mutex::new(RefCell::new(None));
 /// Received bytes lost (ring full).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
+/// The clock when the core last woke.
+static WOKE: AtomicU32 = AtomicU32::new(0);
+/// TIM2's interrupts so far: the slicer sleeps until a row period of them has passed.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+/// Thread mode's longest stretch awake before the slicer makes it sleep until the next row,
+/// in [`BoardClock`] ticks: 1 ms, a fifth of a row at 200 rows a second.
+const SLICE_TICKS: u32 = CORE_HZ / 1000;
 
 /// What TIM2's interrupt owns.
 struct Sensor {
@@ -380,6 +395,21 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::EXTI1);
     }
 
+    // The slicer: SysTick at the lowest priority, every quarter of a slice of the core clock
+    // (the handler measures the time awake by BoardClock itself), counting while awake.
+    #[allow(unsafe_code)]
+    // SAFETY: the slicer's priority is set before SysTick's interrupt is enabled.
+    unsafe {
+        cp.SCB.set_priority(SystemHandler::SysTick, 0xF0);
+    }
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST
+        .set_reload((clocks.hclk().raw() / 4000).clamp(2, 0x00FF_FFFF) - 1);
+    cp.SYST.clear_current();
+    cp.SYST.enable_interrupt();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+    slicer(true);
+
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
             NVIC::pend(Interrupt::EXTI1)
@@ -396,9 +426,58 @@ fn main() -> ! {
         if idle {
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
-                    cortex_m::asm::wfi();
+                    slicer(false);
+                    sleep();
+                    slicer(true);
                 }
             });
+        }
+    }
+}
+
+/// Sleeps until an interrupt (called with interrupts off: it is taken right after).
+fn sleep() {
+    cortex_m::asm::wfi();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+}
+
+/// Lets SysTick count (`on`, while the core is awake) or stops it (asleep: it would wake
+/// the core).
+fn slicer(on: bool) {
+    const CSR: usize = 0xE000_E010;
+    // ENABLE, TICKINT, CLKSOURCE (the processor clock): as set up in `main`.
+    let csr = if on { 0b111 } else { 0b110 };
+    #[allow(unsafe_code)]
+    // SAFETY: SysTick's control register, owned by the slicer (set up in `main`).
+    unsafe {
+        core::ptr::write_volatile(CSR as *mut u32, csr);
+    }
+}
+
+/// The slicer: if thread mode has been awake [`SLICE_TICKS`] since the core last woke (a
+/// screening), sleeps until a row period of conversions has passed, then lets it go on.
+#[exception]
+fn SysTick() {
+    if BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed)) < SLICE_TICKS {
+        return;
+    }
+    let factor = critical_section::with(|cs| {
+        SENSOR
+            .borrow_ref(cs)
+            .as_ref()
+            .map_or(1, |s| s.sampler.decimator().factor())
+    });
+    let start = TICKS.load(Ordering::Relaxed);
+    loop {
+        let slept = cortex_m::interrupt::free(|_| {
+            let waiting = TICKS.load(Ordering::Relaxed).wrapping_sub(start) < factor;
+            if waiting {
+                sleep();
+            }
+            waiting
+        });
+        if !slept {
+            break;
         }
     }
 }
@@ -455,6 +534,7 @@ impl Transport for Link {
 #[interrupt]
 fn TIM2() {
     let stamp = BoardClock.now();
+    TICKS.fetch_add(1, Ordering::Relaxed);
     let row = critical_section::with(|cs| {
         if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
             let _ = sensor.timer.wait();
