@@ -178,6 +178,14 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         shared.request_schedule(schedule);
     }
 
+    /// Whether a periodic report is due at clock `now` (thread mode that sleeps through
+    /// the rows' interrupts wakes for it).
+    pub fn due(&self, now: u32) -> bool {
+        self.duty.is_none()
+            && self.period_ticks > 0
+            && now.wrapping_sub(self.last_report) >= self.period_ticks
+    }
+
     /// The most clock ticks one screening took.
     pub fn screen_cost_max(&self) -> u32 {
         self.screen_cost_max

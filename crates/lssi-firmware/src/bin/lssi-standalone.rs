@@ -394,18 +394,27 @@ fn main() -> ! {
                 drift.support_changes
             );
         }
-        if idle {
-            // Sleeps only if nothing waits; checked with interrupts off so that an
-            // interrupt in between still wakes the `wfi` (it is taken right after).
-            cortex_m::interrupt::free(|_| {
-                if !SHARED.screening_waiting() && !rx_out.ready() {
+        // Sleeps until thread mode has work: a snapshot to screen (the recording's final one
+        // too), a byte from the host, a report due. The rows' interrupts in between come and go
+        // without a pass of thread mode (its reporter's pass costs instructions every row
+        // otherwise). Checked with interrupts off so that an interrupt in between still
+        // wakes the `wfi` (it is taken right after).
+        while idle {
+            let work = cortex_m::interrupt::free(|_| {
+                let work =
+                    SHARED.screening_waiting() || rx_out.ready() || reporter.due(BoardClock.now());
+                if !work {
                     // Asleep, thread mode needs no slicing: SysTick stops (it would wake
-                    // the core), and counts a new slice from the wake-up on.
+                    // the core).
                     slicer(false);
                     sleep();
                     slicer(true);
                 }
+                work
             });
+            if work {
+                break;
+            }
         }
     }
 }
