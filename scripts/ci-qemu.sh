@@ -8,7 +8,9 @@
 #      image sampling a 10 kHz recording by its timer must lose no sample and end with that
 #      model (tests/tests/standalone_qemu.rs), and a simulated piezo harvester (x and V) through
 #      the `system` image must give the host's f32 SystemIdentifier's two equations
-#      (tests/tests/e2e/system_qemu.rs); ignored by a plain `cargo test`, run here with
+#      (tests/tests/e2e/system_qemu.rs), and the standalone instrument built with `system`
+#      sampling x and V (two ADC channels) must end with the host's f32 system model
+#      (tests/tests/e2e/standalone_system_qemu.rs); ignored by a plain `cargo test`, run here with
 #      --include-ignored (a missing QEMU or ELF fails them);
 #   5. the identifier's cost, size and stack table (scripts/firmware-bench.sh).
 # Exits non-zero at the first failure. LSSI_CI_SKIP_BENCH=1 leaves out step 5.
@@ -37,14 +39,20 @@ elf="$root/crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-firmwa
 # The replay image that also identifies systems (x and V), kept beside the default one.
 (cd crates/lssi-firmware && cargo build --release --locked --features system)
 cp "$elf" "$elf-system"
+# The standalone instrument with two ADC channels (x and V: a harvester's system), kept
+# beside the one-channel standalone image.
+standalone="$root/crates/lssi-firmware/target/thumbv7em-none-eabihf/release/lssi-standalone"
+(cd crates/lssi-firmware && cargo build --release --locked --bin lssi-standalone --features system)
+cp "$standalone" "$standalone-system"
 (cd crates/lssi-firmware && cargo build --release --locked)
-ls -l "$elf" "$elf-system"
+ls -l "$elf" "$elf-system" "$standalone" "$standalone-system"
 
 step "firmware smoke test under QEMU"
 crates/lssi-firmware/scripts/qemu-check.sh
 
 step "replay through the QEMU firmware == lssi identify --f32 --no-refine; the standalone instrument at 10 kHz"
 LSSI_FIRMWARE_ELF="$elf" LSSI_SYSTEM_FIRMWARE_ELF="$elf-system" \
+    LSSI_STANDALONE_SYSTEM_ELF="$standalone-system" \
     cargo test --locked --release -p lssi-tests --test e2e -- qemu --include-ignored --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then

@@ -11,10 +11,13 @@
 #     model's x offset must be (VREF / 2 = 1.65 V, within 3 %);
 #   - it sleeps between samples: the main loop runs at most 2 passes (Health's watchdog
 #     counter) a conversion; without its `wfi` it would spin dozens.
+# Then the same for the two-channel build (`--features netduinoplus2,system`: PA0 and PA1
+# converted each tick, x'' and V' identified): the same checks, with SystemModel frames of two
+# equations instead of the x offset.
 # QEMU runs with -icount (guest time from instructions: the checks do not depend on the
 # host's speed) and sleep=off (idle time skipped: the guest runs faster than real time).
-# Usage: bash scripts/netduinoplus2.sh [SECONDS]   (listens SECONDS of wall time, default 15;
-# the guest runs 0.3-2x real time depending on the host's load)
+# Usage: bash scripts/netduinoplus2.sh [SECONDS]   (listens SECONDS of wall time to each image,
+# default 15; the guest runs 0.3-2x real time depending on the host's load)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-15}
@@ -26,10 +29,6 @@ rustup target add thumbv7em-none-eabihf >/dev/null
 # minute saved). The F405 image replaces the F411 one at that path (cargo relinks the F411
 # image when it is next built), so it is copied out first.
 crate="$root/crates/lssi-f411"
-(cd "$crate" && cargo build --release --locked --quiet --no-default-features --features netduinoplus2)
-mkdir -p "$crate/target/netduinoplus2"
-elf="$crate/target/netduinoplus2/lssi-f411-netduinoplus2.elf"
-cp "$crate/target/thumbv7em-none-eabihf/release/lssi-f411" "$elf"
 lssi=${LSSI:-}
 if [[ -z $lssi ]]; then
     (cd "$root" && cargo build --release --locked -q -p lssi-host --bin lssi)
@@ -43,40 +42,51 @@ cleanup() {
     rm -rf "$work"
 }
 trap cleanup EXIT
-qemu=(qemu-system-arm -M netduinoplus2 -nographic -monitor none -serial pty
-    -icount shift=4,sleep=off -kernel "$elf")
-echo "\$ ${qemu[*]}"
-"${qemu[@]}" >"$work/qemu.out" 2>&1 &
-qemu_pid=$!
-pty=""
-for _ in $(seq 50); do
-    pty=$(grep -so '/dev/pts/[0-9]*' "$work/qemu.out" | head -1 || true)
-    [[ -n $pty ]] && break
-    sleep 0.1
-done
-if [[ -z $pty ]]; then
-    echo "QEMU did not open a pty:" >&2
-    cat "$work/qemu.out" >&2
-    exit 1
-fi
-echo "\$ lssi monitor --port $pty --seconds $seconds --json"
-start=$(date +%s.%N)
-"$lssi" monitor --port "$pty" --seconds "$seconds" --json --log "$work/monitor.tlm" >"$work/frames.json"
-end=$(date +%s.%N)
-kill "$qemu_pid" 2>/dev/null || true
-wait "$qemu_pid" 2>/dev/null || true
-qemu_pid=""
 
-python3 - "$work/frames.json" "$start" "$end" <<'EOF'
+run_image() { # run_image FEATURES: builds, boots and listens; frames in $work/frames.json
+    local features=$1
+    (cd "$crate" && cargo build --release --locked --quiet --no-default-features --features "$features")
+    mkdir -p "$crate/target/netduinoplus2"
+    elf="$crate/target/netduinoplus2/lssi-f411-${features//,/-}.elf"
+    cp "$crate/target/thumbv7em-none-eabihf/release/lssi-f411" "$elf"
+    qemu=(qemu-system-arm -M netduinoplus2 -nographic -monitor none -serial pty
+        -icount shift=4,sleep=off -kernel "$elf")
+    echo
+    echo "\$ ${qemu[*]}"
+    "${qemu[@]}" >"$work/qemu.out" 2>&1 &
+    qemu_pid=$!
+    pty=""
+    for _ in $(seq 50); do
+        pty=$(grep -so '/dev/pts/[0-9]*' "$work/qemu.out" | head -1 || true)
+        [[ -n $pty ]] && break
+        sleep 0.1
+    done
+    if [[ -z $pty ]]; then
+        echo "QEMU did not open a pty:" >&2
+        cat "$work/qemu.out" >&2
+        exit 1
+    fi
+    echo "\$ lssi monitor --port $pty --seconds $seconds --json"
+    start=$(date +%s.%N)
+    "$lssi" monitor --port "$pty" --seconds "$seconds" --json --log "$work/monitor.tlm" >"$work/frames.json"
+    end=$(date +%s.%N)
+    kill "$qemu_pid" 2>/dev/null || true
+    wait "$qemu_pid" 2>/dev/null || true
+    qemu_pid=""
+}
+
+check() { # check KIND: the frames' checks (KIND: single or system)
+python3 - "$work/frames.json" "$start" "$end" "$1" <<'EOF'
 import json, sys
 
-path, start, end = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+path, start, end, kind = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
 frames = [json.loads(line) for line in open(path) if line.strip()]
 health = [f for f in frames if f.get("kind") == "health"]
-models = [f for f in frames if f.get("kind") == "model"]
+models = [f for f in frames if f.get("kind") == ("model" if kind == "single" else "system_model")]
 failures = []
 ADC_HZ, ROW_HZ, VREF = 10_000, 200, 3.3
-print(f"frames decoded: {len(frames)} ({len(health)} Health, {len(models)} Model) in {end - start:.1f} s")
+print(f"frames decoded: {len(frames)} ({len(health)} Health, {len(models)} "
+      f"{'Model' if kind == 'single' else 'SystemModel'}) in {end - start:.1f} s")
 if len(health) < 4:
     print(f"FAIL: {len(health)} Health frames decoded (at least 4 expected)")
     sys.exit(1)
@@ -112,7 +122,12 @@ print(f"main-loop passes a conversion: {passes:.3f} ({last['watchdog']} passes, 
 if passes > 2.0:
     failures.append(f"{passes:.1f} main-loop passes a conversion: it does not sleep between samples")
 if not models:
-    failures.append("no Model frame decoded")
+    failures.append("no model frame decoded")
+elif kind == "system":
+    equations = models[-1]["equations"]
+    print(f"SystemModel: {len(equations)} equations from PA0 and PA1")
+    if len(equations) != 2:
+        failures.append(f"{len(equations)} equations, not x'' and V'")
 else:
     offset = models[-1]["report"]["offsets"][0]
     print(f"model x offset {offset:.4f} V (QEMU's ADC ramp over the full scale: mean VREF/2 = {VREF / 2} V)")
@@ -122,3 +137,9 @@ for f in failures:
     print("FAIL:", f)
 sys.exit(1 if failures else 0)
 EOF
+}
+
+run_image netduinoplus2
+check single
+run_image netduinoplus2,system
+check system

@@ -13,13 +13,24 @@
 //! | TIM2 update | 0x00 | one ADC conversion → the decimator; a row (every 50) → the 64-place queue, pends EXTI1 |
 //! | USART1 | 0x40 | RX bytes into a ring; TX ring out on TXE |
 //! | EXTI1 (pended) | 0x80 | queue → identifier rows; the snapshot at a screening point |
+//! | SysTick (the slicer) | 0xF0 | thread mode awake for a slice: `wfi` until the next row |
 //! | thread mode | lowest | screening on the snapshot, frames, host commands, `wfi` |
+//!
+//! The screening is spread over rows (no long wake-up): past [`SLICE_TICKS`] awake, the
+//! slicer sleeps until a row period of conversions has passed and lets thread mode go on;
+//! the same code on the same snapshot, so the same model (see crates/lssi-firmware's
+//! lssi-standalone, where QEMU measures it).
 //!
 //! At power-up it starts from the configuration a host last sent (kept in flash sector 7,
 //! [`store`]), or else from the image's own.
 //!
 //! Built with `--no-default-features --features netduinoplus2`, the same application runs
 //! on QEMU's `netduinoplus2` machine (an STM32F405): see [`netduino`] for what differs.
+//!
+//! With the `system` feature it is the two-channel instrument: each TIM2 interrupt converts
+//! PA0 (x) and then PA1 (the voltage across the harvester's load), both are decimated to
+//! rows, and lssi-core's `SystemIdentifier` identifies x'' and V' (`SystemModel` frames; a
+//! host's `ConfigureSystem` is applied, not kept in flash).
 
 #![no_std]
 #![no_main]
@@ -38,17 +49,21 @@ use core::sync::atomic::{AtomicU32, Ordering};
 #[cfg(not(feature = "netduinoplus2"))]
 use cortex_m::peripheral::DWT;
 use cortex_m::peripheral::NVIC;
-use cortex_m_rt::entry;
+use cortex_m::peripheral::scb::SystemHandler;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use defmt_rtt as _;
 use heapless::spsc::{Consumer, Producer, Queue};
-use lssi_core::{Config, Snapshot};
+use lssi_core::Config;
 use lssi_device::Transport;
 use lssi_device::decimate::{self, Decimator};
 use lssi_device::standalone::{
-    Clock, Engine, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
+    Clock, EventQueue, IdentifyTask, Reading, Reporter, Sampler, Shared,
 };
 use panic_probe as _;
+#[cfg(feature = "system")]
+use stm32f4xx_hal::gpio::PA1;
 #[cfg(not(feature = "netduinoplus2"))]
 use stm32f4xx_hal::{
     adc::{
@@ -68,13 +83,19 @@ use stm32f4xx_hal::{
 
 #[cfg(feature = "netduinoplus2")]
 mod netduino;
+// A system's configuration (`ConfigureSystem`) is not kept: only `load`'s caller differs.
 #[cfg(not(feature = "netduinoplus2"))]
+#[cfg_attr(feature = "system", allow(dead_code))]
 mod store;
 
-/// Window capacity, library capacity, channels (x only: one ADC channel).
+/// Window capacity, library capacity, channels (x only: one ADC channel; x and V with the
+/// `system` feature).
 const W: usize = 256;
 const P: usize = 16;
+#[cfg(not(feature = "system"))]
 const C: usize = 1;
+#[cfg(feature = "system")]
+const C: usize = 2;
 /// The core clock (the DWT cycle counter counts it).
 #[cfg(not(feature = "netduinoplus2"))]
 const CORE_HZ: u32 = 96_000_000;
@@ -93,14 +114,69 @@ const CIC_ORDER: u8 = 3;
 const VREF: f32 = 3.3;
 const FULL_SCALE: f32 = 4095.0;
 
-type Id = Engine<W, P, C>;
+/// One equation (x'' from x).
+#[cfg(not(feature = "system"))]
+mod flavour {
+    use super::{C, P, W};
+    use lssi_core::{Config, Snapshot};
 
-static SHARED: Shared<P> = Shared::new();
+    pub type Id = lssi_device::standalone::Engine<W, P, C>;
+    pub type Shot = Snapshot<f32, P>;
+    pub type IdConfig = Config;
+    pub const EMPTY: Shot = Snapshot::empty();
+
+    pub fn config(base: Config) -> IdConfig {
+        base
+    }
+
+    pub fn base(config: &IdConfig) -> &Config {
+        config
+    }
+}
+
+/// A system (x'' and V' from x on PA0 and V on PA1).
+#[cfg(feature = "system")]
+mod flavour {
+    use super::{C, P, W};
+    use lssi_core::library::Electrical;
+    use lssi_core::{Config, SystemConfig};
+    use lssi_device::standalone::SystemShot;
+
+    pub type Id = lssi_device::standalone::SystemEngine<W, P, C>;
+    pub type Shot = SystemShot<P>;
+    pub type IdConfig = SystemConfig;
+    pub const EMPTY: Shot = SystemShot::snapshot();
+
+    /// The voltage as the electrical channel, coupling terms of degree 1 (`lssi identify`'s
+    /// default).
+    pub fn config(base: Config) -> IdConfig {
+        SystemConfig {
+            base,
+            electrical: [Some(Electrical::Voltage), None],
+            coupling_order: 1,
+        }
+    }
+
+    pub fn base(config: &IdConfig) -> &Config {
+        &config.base
+    }
+}
+
+use flavour::{EMPTY, Id, IdConfig, Shot};
+
+static SHARED: Shared<P, Shot> = Shared::new();
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: IdentifyTask<W, P, C> = IdentifyTask::new();
+static IDENTIFY: IdentifyTask<W, P, C, Id> = IdentifyTask::new();
 static UART: Mutex<RefCell<Option<Uart>>> = Mutex::new(RefCell::new(None));
 /// Received bytes lost (ring full).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
+/// The clock when the core last woke.
+static WOKE: AtomicU32 = AtomicU32::new(0);
+/// TIM2's interrupts so far: the slicer sleeps until a row period of them has passed.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+/// Thread mode's longest stretch awake before the slicer makes it sleep until the next row,
+/// in [`BoardClock`] ticks: 1 ms, a fifth of a row at 200 rows a second.
+const SLICE_TICKS: u32 = CORE_HZ / 1000;
 
 /// What TIM2's interrupt owns.
 struct Sensor {
@@ -111,6 +187,10 @@ struct Sensor {
     adc: netduino::Converter,
     #[cfg_attr(feature = "netduinoplus2", allow(dead_code))]
     pin: PA0<Analog>,
+    /// The voltage across the harvester's load (the `system` feature).
+    #[cfg(feature = "system")]
+    #[cfg_attr(feature = "netduinoplus2", allow(dead_code))]
+    pin_v: PA1<Analog>,
     sampler: Sampler<'static>,
 }
 
@@ -150,8 +230,8 @@ fn default_config() -> Config {
 
 /// The decimator from [`RATE_HZ`] conversions to `config`'s rows, if its row period is a
 /// whole number (1 to 255) of conversions.
-fn decimator_for(config: &Config) -> Option<Decimator> {
-    let d = decimate::factor_for(f64::from(RATE_HZ), config.sample_period)?;
+fn decimator_for(config: &IdConfig) -> Option<Decimator> {
+    let d = decimate::factor_for(f64::from(RATE_HZ), flavour::base(config).sample_period)?;
     Decimator::new(d, CIC_ORDER).ok()
 }
 
@@ -175,8 +255,8 @@ fn main() -> ! {
         rcc.cfgr.freeze()
     };
 
-    let engine = cortex_m::singleton!(: Id = Engine::new());
-    let snapshot = cortex_m::singleton!(: Snapshot<f32, P> = Snapshot::empty());
+    let engine = cortex_m::singleton!(: Id = Id::new());
+    let snapshot = cortex_m::singleton!(: Shot = EMPTY);
     let queue = cortex_m::singleton!(: EventQueue = Queue::new());
     let rx_ring = cortex_m::singleton!(: Queue<u8, 257> = Queue::new());
     let tx_ring = cortex_m::singleton!(: Queue<u8, 1537> = Queue::new());
@@ -187,7 +267,7 @@ fn main() -> ! {
     };
     #[cfg(not(feature = "netduinoplus2"))]
     let mut flash = LockedFlash::new(dp.FLASH);
-    #[cfg(not(feature = "netduinoplus2"))]
+    #[cfg(not(any(feature = "netduinoplus2", feature = "system")))]
     let (mut config, duty) = match store::load(&flash) {
         Ok(stored) => stored,
         Err(why) => {
@@ -195,8 +275,8 @@ fn main() -> ! {
             (default_config(), None)
         }
     };
-    #[cfg(feature = "netduinoplus2")]
-    let (mut config, duty) = (default_config(), None);
+    #[cfg(any(feature = "netduinoplus2", feature = "system"))]
+    let (mut config, duty) = (flavour::config(default_config()), None);
     let configured = match decimator_for(&config) {
         Some(d) => engine
             .configure_at(config, d.time_offset(f64::from(RATE_HZ)))
@@ -217,7 +297,7 @@ fn main() -> ! {
         Ok(d) => d,
         Err(()) => {
             defmt::warn!("using the image's configuration");
-            config = default_config();
+            config = flavour::config(default_config());
             let Some(d) = decimator_for(&config) else {
                 defmt::panic!("the image's row rate is no whole number of conversions")
             };
@@ -238,6 +318,8 @@ fn main() -> ! {
 
     let gpioa = dp.GPIOA.split();
     let pin = gpioa.pa0.into_analog();
+    #[cfg(feature = "system")]
+    let pin_v = gpioa.pa1.into_analog();
     #[cfg(not(feature = "netduinoplus2"))]
     let adc = Adc::adc1(dp.ADC1, true, AdcConfig::default());
     #[cfg(feature = "netduinoplus2")]
@@ -265,6 +347,8 @@ fn main() -> ! {
             timer,
             adc,
             pin,
+            #[cfg(feature = "system")]
+            pin_v,
             sampler,
         });
         UART.borrow_ref_mut(cs).replace(Uart {
@@ -286,8 +370,8 @@ fn main() -> ! {
         RATE_HZ,
         decimator.factor()
     );
-    let mut reporter: Reporter<W, P, C> =
-        Reporter::new(config, (1.0 / config.sample_period) as f32, CORE_HZ);
+    let row_hz = (1.0 / flavour::base(&config).sample_period) as f32;
+    let mut reporter: Reporter<W, P, C, Shot> = Reporter::new(config, row_hz, CORE_HZ);
     reporter.set_adc(
         f64::from(RATE_HZ),
         CIC_ORDER,
@@ -311,6 +395,21 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::EXTI1);
     }
 
+    // The slicer: SysTick at the lowest priority, every quarter of a slice of the core clock
+    // (the handler measures the time awake by BoardClock itself), counting while awake.
+    #[allow(unsafe_code)]
+    // SAFETY: the slicer's priority is set before SysTick's interrupt is enabled.
+    unsafe {
+        cp.SCB.set_priority(SystemHandler::SysTick, 0xF0);
+    }
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST
+        .set_reload((clocks.hclk().raw() / 4000).clamp(2, 0x00FF_FFFF) - 1);
+    cp.SYST.clear_current();
+    cp.SYST.enable_interrupt();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+    slicer(true);
+
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
             NVIC::pend(Interrupt::EXTI1)
@@ -327,9 +426,58 @@ fn main() -> ! {
         if idle {
             cortex_m::interrupt::free(|_| {
                 if !SHARED.screening_waiting() && !rx_out.ready() {
-                    cortex_m::asm::wfi();
+                    slicer(false);
+                    sleep();
+                    slicer(true);
                 }
             });
+        }
+    }
+}
+
+/// Sleeps until an interrupt (called with interrupts off: it is taken right after).
+fn sleep() {
+    cortex_m::asm::wfi();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+}
+
+/// Lets SysTick count (`on`, while the core is awake) or stops it (asleep: it would wake
+/// the core).
+fn slicer(on: bool) {
+    const CSR: usize = 0xE000_E010;
+    // ENABLE, TICKINT, CLKSOURCE (the processor clock): as set up in `main`.
+    let csr = if on { 0b111 } else { 0b110 };
+    #[allow(unsafe_code)]
+    // SAFETY: SysTick's control register, owned by the slicer (set up in `main`).
+    unsafe {
+        core::ptr::write_volatile(CSR as *mut u32, csr);
+    }
+}
+
+/// The slicer: if thread mode has been awake [`SLICE_TICKS`] since the core last woke (a
+/// screening), sleeps until a row period of conversions has passed, then lets it go on.
+#[exception]
+fn SysTick() {
+    if BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed)) < SLICE_TICKS {
+        return;
+    }
+    let factor = critical_section::with(|cs| {
+        SENSOR
+            .borrow_ref(cs)
+            .as_ref()
+            .map_or(1, |s| s.sampler.decimator().factor())
+    });
+    let start = TICKS.load(Ordering::Relaxed);
+    loop {
+        let slept = cortex_m::interrupt::free(|_| {
+            let waiting = TICKS.load(Ordering::Relaxed).wrapping_sub(start) < factor;
+            if waiting {
+                sleep();
+            }
+            waiting
+        });
+        if !slept {
+            break;
         }
     }
 }
@@ -386,6 +534,7 @@ impl Transport for Link {
 #[interrupt]
 fn TIM2() {
     let stamp = BoardClock.now();
+    TICKS.fetch_add(1, Ordering::Relaxed);
     let row = critical_section::with(|cs| {
         if let Some(sensor) = SENSOR.borrow_ref_mut(cs).as_mut() {
             let _ = sensor.timer.wait();
@@ -397,24 +546,27 @@ fn TIM2() {
                     x: f32::NAN,
                     v: None,
                     u: None,
+                    e: cfg!(feature = "system").then_some(f32::NAN),
                 };
                 return sensor.sampler.convert(stamp, idle, &SHARED);
             }
             #[cfg(not(feature = "netduinoplus2"))]
             let code = sensor.adc.convert(&sensor.pin, SampleTime::Cycles_56);
             #[cfg(feature = "netduinoplus2")]
-            let code = sensor.adc.convert();
-            // A reading at either rail is saturated: passed on as NaN, which the identifier
-            // counts as rejected and skips like a gap (sampling goes on).
-            let x = if code == 0 || f32::from(code) >= FULL_SCALE {
-                f32::NAN
-            } else {
-                f32::from(code) * (VREF / FULL_SCALE)
-            };
+            let code = sensor.adc.convert(0);
+            // The second channel right after the first (56 + 12 ADC cycles: 2.8 µs at
+            // 24 MHz, the pair's skew; a 1 kHz harvester phase error of 0.001 rad).
+            #[cfg(all(feature = "system", not(feature = "netduinoplus2")))]
+            let code_v = Some(sensor.adc.convert(&sensor.pin_v, SampleTime::Cycles_56));
+            #[cfg(all(feature = "system", feature = "netduinoplus2"))]
+            let code_v = Some(sensor.adc.convert(1));
+            #[cfg(not(feature = "system"))]
+            let code_v: Option<u16> = None;
             let reading = Reading {
-                x,
+                x: volts(code),
                 v: None,
                 u: None,
+                e: code_v.map(volts),
             };
             sensor.sampler.convert(stamp, reading, &SHARED)
         } else {
@@ -424,6 +576,16 @@ fn TIM2() {
     // The identify task wakes once a row, not once a conversion.
     if row {
         NVIC::pend(Interrupt::EXTI1);
+    }
+}
+
+/// An ADC code in volts; a reading at either rail is saturated: passed on as NaN, which the
+/// identifier counts as rejected and skips like a gap (sampling goes on).
+fn volts(code: u16) -> f32 {
+    if code == 0 || f32::from(code) >= FULL_SCALE {
+        f32::NAN
+    } else {
+        f32::from(code) * (VREF / FULL_SCALE)
     }
 }
 

@@ -64,20 +64,21 @@ pub fn start_sampling(rate_hz: u32) {
     }
 }
 
-/// ADC1 converting channel 0 (PA0), one conversion at a time, by its registers.
+/// ADC1 converting channel 0 (PA0), and channel 1 (PA1) for a system, one conversion at a
+/// time, by its registers.
 pub struct Converter {
     adc: ADC1,
 }
 
 impl Converter {
-    /// Channel 0 alone in the regular sequence, 56 cycles of sampling, 12 bits, right
-    /// aligned, the ADC on.
+    /// One channel in the regular sequence (channel 0 until [`Converter::convert`] names
+    /// another), 56 cycles of sampling on channels 0 and 1, 12 bits, right aligned, the ADC on.
     pub fn new(adc: ADC1) -> Self {
         // SAFETY: register writes to the ADC this function owns; the values are the
-        // reference manual's (RM0090 §13.13): SMP0 = 0b011 (56 cycles), SQ1 = 0, L = 0.
+        // reference manual's (RM0090 §13.13): SMP0 = SMP1 = 0b011 (56 cycles), SQ1 = 0, L = 0.
         unsafe {
             adc.cr1().write(|w| w.bits(0));
-            adc.smpr2().write(|w| w.bits(0b011));
+            adc.smpr2().write(|w| w.bits(0b011_011)); // SMP0, SMP1: 56 cycles
             adc.sqr1().write(|w| w.bits(0));
             adc.sqr3().write(|w| w.bits(0));
             adc.cr2().write(|w| w.bits(1)); // ADON
@@ -85,10 +86,14 @@ impl Converter {
         Self { adc }
     }
 
-    /// Starts a conversion and reads it. QEMU's model converts on the data register's read
-    /// after SWSTART and never sets EOC, so nothing is waited on (silicon would need the
-    /// HAL's `convert`, which waits for EOC).
-    pub fn convert(&mut self) -> u16 {
+    /// Starts a conversion of `channel` (0: PA0, 1: PA1) and reads it. QEMU's model
+    /// converts on the data register's read after SWSTART and never sets EOC, so nothing
+    /// is waited on (silicon would need the HAL's `convert`, which waits for EOC).
+    pub fn convert(&mut self, channel: u8) -> u16 {
+        // SAFETY: SQ1 (bits 0-4 of SQR3) names the channel the next conversion reads.
+        unsafe {
+            self.adc.sqr3().write(|w| w.bits(u32::from(channel & 0x1F)));
+        }
         self.adc.cr2().modify(|_, w| w.swstart().set_bit());
         self.adc.dr().read().data().bits()
     }

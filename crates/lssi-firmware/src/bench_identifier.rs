@@ -562,6 +562,7 @@ fn decimation(meter: &mut Meter) {
             x,
             v: None,
             u: None,
+            e: None,
         };
         let (_, cost) = meter.measure(|| sampler.tick(black_box(i), black_box(reading), counters));
         tick.add(cost);

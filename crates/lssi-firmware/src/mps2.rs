@@ -13,12 +13,12 @@
 //! | offset | bytes | what |
 //! |---|---|---|
 //! | 0 | 8 | magic `LSSIREC1` |
-//! | 8 | 4 | channels: bit 0 v, bit 1 u (x always) |
+//! | 8 | 4 | channels: bit 0 v, bit 1 u, bit 2 an electrical channel V or i (x always) |
 //! | 12 | 4 | samples N |
 //! | 16 | 8 | rate, Hz (f64) |
 //! | 24 | 4 | length L of the stored configuration (0: none) |
 //! | 28 | L ≤ 228 | a `HostMsg::Configure` frame (COBS + CRC), as a host would send it |
-//! | 256 | 4·N·channels | the samples, f32, channel-interleaved (x[, v][, u]) |
+//! | 256 | 4·N·channels | the samples, f32, channel-interleaved (x[, v][, u][, V]) |
 
 use lssi_device::standalone::{Clock, Reading};
 
@@ -186,6 +186,9 @@ pub struct Recording {
     pub velocity: bool,
     /// Whether it has u.
     pub input: bool,
+    /// Whether it has an electrical channel (the second ADC channel of a system's
+    /// instrument: a harvester's voltage across its load).
+    pub electrical: bool,
     config_len: usize,
 }
 
@@ -211,6 +214,7 @@ impl Recording {
             rate_hz,
             velocity: channels & 1 != 0,
             input: channels & 2 != 0,
+            electrical: channels & 4 != 0,
             config_len,
         })
     }
@@ -226,13 +230,19 @@ impl Recording {
 
     /// Sample `i` (below `len`).
     pub fn reading(&self, i: u32) -> Reading {
-        let per = 1 + usize::from(self.velocity) + usize::from(self.input);
+        let (v, u, e) = (
+            usize::from(self.velocity),
+            usize::from(self.input),
+            usize::from(self.electrical),
+        );
+        let per = 1 + v + u + e;
         let base = PSRAM + HEADER + 4 * per * i as usize;
         let value = |k: usize| f32::from_bits(read(base + 4 * k));
         Reading {
             x: value(0),
             v: self.velocity.then(|| value(1)),
-            u: self.input.then(|| value(1 + usize::from(self.velocity))),
+            u: self.input.then(|| value(1 + v)),
+            e: self.electrical.then(|| value(1 + v + u)),
         }
     }
 }

@@ -5,4 +5,5 @@ mod qemu;
 mod replay;
 mod replay_sweep;
 mod standalone_qemu;
+mod standalone_system_qemu;
 mod system_qemu;

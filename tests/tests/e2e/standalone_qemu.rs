@@ -289,7 +289,7 @@ fn run_standalone(
     adc_hz: f64,
     config: &lssi_proto::WireConfig,
     dir: &Path,
-) -> Vec<lssi_proto::DeviceMsg> {
+) -> (Vec<lssi_proto::DeviceMsg>, String) {
     use lssi_proto::{DeviceFrameDecoder, DeviceMsg, HostMsg, MAX_HOST_FRAME_LEN, encode};
     let elf = standalone_elf();
     assert!(elf.is_file(), "{}: build the firmware first", elf.display());
@@ -314,31 +314,50 @@ fn run_standalone(
         .output()
         .expect("QEMU runs");
     assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
-    print_log(&elf, &status.stdout, dir);
+    let log = print_log(&elf, &status.stdout, dir);
     let frames = std::fs::read(&uart).expect("the UART's bytes");
     let mut decoder = DeviceFrameDecoder::new();
-    decoder
+    let messages = decoder
         .feed::<DeviceMsg>(&frames)
         .map(|m| m.expect("a valid frame"))
-        .collect()
+        .collect();
+    (messages, log)
 }
 
 /// Prints the firmware's defmt log (its semihosting output), decoded by `defmt-print` when
-/// that is installed (scripts/ci-qemu.sh installs it); nothing otherwise.
-fn print_log(elf: &Path, defmt: &[u8], dir: &Path) {
+/// that is installed (scripts/ci-qemu.sh installs it), and returns it; empty otherwise.
+fn print_log(elf: &Path, defmt: &[u8], dir: &Path) -> String {
     let raw = dir.join("defmt.bin");
     std::fs::write(&raw, defmt).expect("write the log");
     let Ok(file) = std::fs::File::open(&raw) else {
-        return;
+        return String::new();
     };
-    if let Ok(out) = std::process::Command::new("defmt-print")
+    match std::process::Command::new("defmt-print")
         .arg("-e")
         .arg(elf)
         .stdin(file)
         .output()
     {
-        println!("{}", String::from_utf8_lossy(&out.stdout));
+        Ok(out) => {
+            let text = String::from_utf8_lossy(&out.stdout).into_owned();
+            println!("{text}");
+            text
+        }
+        Err(_) => String::new(),
     }
+}
+
+/// The firmware's longest wake-up while sampling, in clock ticks (its last log line).
+fn longest_wake_up(log: &str) -> u64 {
+    let after = log
+        .split("the longest while sampling ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no wake-up figure in the firmware's log (is defmt-print installed? cargo install defmt-print --locked):\n{log}"));
+    after
+        .split(' ')
+        .next()
+        .and_then(|n| n.parse().ok())
+        .expect("a number of ticks")
 }
 
 /// The duty-cycled device under QEMU: 10 kHz conversions decimated to 200 Hz rows, windows
@@ -416,6 +435,7 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
             x: s.x as f32,
             v: None,
             u: None,
+            e: None,
         };
         sampler.tick(i as u32, reading, &shared.counters);
         while let Some(event) = consumer.dequeue() {
@@ -440,7 +460,17 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
         lssi_device::wire::snapshot(identifier.model().expect("a model"), SnapshotCause::Final)
             .expect("fits a snapshot");
 
-    let messages = run_standalone(&recording, ADC_HZ, &wire, dir.path());
+    let (messages, log) = run_standalone(&recording, ADC_HZ, &wire, dir.path());
+    // Each window's screening (≈ 8 M instructions, 3.3 M clock ticks in one wake-up before
+    // it was sliced) is spread over row periods: no wake-up while sampling is longer than a
+    // slice and a row (lssi-standalone's SLICE_TICKS, 25,000, plus the worst row, about
+    // 32,000 with the snapshot's copy).
+    let longest = longest_wake_up(&log);
+    println!("the longest wake-up while sampling: {longest} ticks of 25 MHz");
+    assert!(
+        longest < 100_000,
+        "a wake-up of {longest} ticks: the screening is not spread over rows"
+    );
     // A Model then a Health at the end of each of the 3 windows, then the final pair.
     let kinds: Vec<&str> = messages
         .iter()

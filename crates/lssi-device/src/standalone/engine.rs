@@ -1,12 +1,12 @@
 //! The identify task's part: the identifier fed from the queue, its screenings handed over
 //! on the snapshot.
 
-use super::{Clock, Event, Reading, Shared, Status};
+use super::{Clock, Event, Reading, Screening, Shared, Status};
 use core::cell::{Cell, RefCell};
 use core::sync::atomic::Ordering;
 use critical_section::Mutex;
 use heapless::spsc::Consumer;
-use lssi_core::{Config, Identifier, IdentifierSlot, Sample};
+use lssi_core::{Config, Identifier, IdentifierSlot, Sample, Snapshot};
 use lssi_proto::SnapshotCause;
 
 /// The identify task's part: the identifier, fed from the queue, with its screenings
@@ -228,21 +228,55 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
     }
 }
 
+/// An identify task's engine: [`Engine`] (one equation) or `SystemEngine` (a system).
+pub trait Task<const P: usize>: 'static {
+    /// What its screenings run on.
+    type Snapshot: Screening;
+
+    /// Takes every event the queue holds (see [`Engine::run`]).
+    fn run<K: Clock>(
+        &mut self,
+        events: &mut Consumer<'_, Event>,
+        shared: &Shared<P, Self::Snapshot>,
+        clock: &K,
+    );
+}
+
+impl<const W: usize, const P: usize, const C: usize> Task<P> for Engine<W, P, C> {
+    type Snapshot = Snapshot<f32, P>;
+
+    fn run<K: Clock>(
+        &mut self,
+        events: &mut Consumer<'_, Event>,
+        shared: &Shared<P, Self::Snapshot>,
+        clock: &K,
+    ) {
+        Engine::run(self, events, shared, clock);
+    }
+}
+
 /// Where a board keeps the identify task's two resources between its runs: the engine and
 /// the queue's consumer, each moved out for the run and back after it (critical sections of
 /// a few instructions; the run itself is not in one).
-pub struct IdentifyTask<const W: usize, const P: usize, const C: usize> {
-    engine: Mutex<Cell<Option<&'static mut Engine<W, P, C>>>>,
+pub struct IdentifyTask<
+    const W: usize,
+    const P: usize,
+    const C: usize,
+    E: Task<P> = Engine<W, P, C>,
+> {
+    engine: Mutex<Cell<Option<&'static mut E>>>,
     events: Mutex<RefCell<Option<Consumer<'static, Event>>>>,
 }
 
-impl<const W: usize, const P: usize, const C: usize> Default for IdentifyTask<W, P, C> {
+impl<const W: usize, const P: usize, const C: usize, E: Task<P>> Default
+    for IdentifyTask<W, P, C, E>
+{
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const W: usize, const P: usize, const C: usize> IdentifyTask<W, P, C> {
+impl<const W: usize, const P: usize, const C: usize, E: Task<P>> IdentifyTask<W, P, C, E> {
     /// Empty (in a `static`).
     pub const fn new() -> Self {
         Self {
@@ -252,7 +286,7 @@ impl<const W: usize, const P: usize, const C: usize> IdentifyTask<W, P, C> {
     }
 
     /// Hands over the engine and the consumer end of the sample queue (at start-up).
-    pub fn give(&self, engine: &'static mut Engine<W, P, C>, events: Consumer<'static, Event>) {
+    pub fn give(&self, engine: &'static mut E, events: Consumer<'static, Event>) {
         critical_section::with(|cs| {
             self.engine.borrow(cs).set(Some(engine));
             self.events.borrow(cs).replace(Some(events));
@@ -260,7 +294,7 @@ impl<const W: usize, const P: usize, const C: usize> IdentifyTask<W, P, C> {
     }
 
     /// The identify interrupt's body: [`Engine::run`] on what the queue holds.
-    pub fn run<K: Clock>(&self, shared: &Shared<P>, clock: &K) {
+    pub fn run<K: Clock>(&self, shared: &Shared<P, E::Snapshot>, clock: &K) {
         let engine = critical_section::with(|cs| self.engine.borrow(cs).take());
         let events = critical_section::with(|cs| self.events.borrow(cs).take());
         if let (Some(engine), Some(mut events)) = (engine, events) {

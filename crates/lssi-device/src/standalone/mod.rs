@@ -23,15 +23,21 @@
 //! a software interrupt).
 
 mod engine;
+mod flavour;
 mod reporter;
 mod sampler;
 mod shared;
+#[cfg(feature = "system")]
+mod system;
 
 #[cfg(doc)]
 use crate::Transport;
-pub use engine::{Engine, IdentifyTask};
+pub use engine::{Engine, IdentifyTask, Task};
+pub use flavour::{FromHost, Screening};
 #[cfg(doc)]
 use lssi_core::Snapshot;
 pub use reporter::{Drift, Reporter};
 pub use sampler::{STUCK_RUN, Sampler, Schedule};
 pub use shared::{Clock, Counters, Event, EventQueue, QUEUE_SLOTS, Reading, Shared, Status};
+#[cfg(feature = "system")]
+pub use system::{SystemEngine, SystemShot};

@@ -1,11 +1,11 @@
 //! Thread mode's part: the screening, the reports and the host's commands.
 
-use super::{Clock, Schedule, Shared};
+use super::{Clock, FromHost, Schedule, Screening, Shared};
+use crate::Transport;
 use crate::decimate::{Decimator, factor_for};
-use crate::{Transport, wire};
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
-use lssi_core::Config;
+use lssi_core::Snapshot;
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
     MAX_TERMS, ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, WireDuty,
@@ -72,11 +72,17 @@ impl Drift {
 
 /// Thread mode's part: screens the snapshot, keeps the latest model, sends Model and
 /// Health frames every period and answers the host's commands.
-pub struct Reporter<const W: usize, const P: usize, const C: usize> {
+///
+/// `S` is what it screens: one equation's [`Snapshot`] (the default; `Model` frames, a
+/// host's `Configure`) or a system's (`SystemShot`: `SystemModel` frames, a host's
+/// `ConfigureSystem`).
+pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening = Snapshot<f32, P>>
+{
     decoder: HostFrameDecoder,
     buffer: [u8; MAX_DEVICE_FRAME_LEN],
-    latest: Option<ModelSnapshot>,
-    config: Option<Config>,
+    /// The latest model's frame (`Model` or `SystemModel`).
+    latest: Option<DeviceMsg>,
+    config: Option<S::Config>,
     rate_hz: f32,
     /// The ADC's conversion rate, Hz, and the CIC order rows are decimated with (0.0: no
     /// decimation, every conversion a row).
@@ -110,10 +116,10 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize> {
     windows: u32,
 }
 
-impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
+impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P, C, S> {
     /// Reports every `period_ticks` clock ticks, about the identifier configured with
     /// `config` (the board's default or stored one), sampled at `rate_hz`.
-    pub const fn new(config: Config, rate_hz: f32, period_ticks: u32) -> Self {
+    pub const fn new(config: S::Config, rate_hz: f32, period_ticks: u32) -> Self {
         Self {
             decoder: HostFrameDecoder::new(),
             buffer: [0; MAX_DEVICE_FRAME_LEN],
@@ -146,10 +152,11 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     /// ADC set by [`Reporter::set_adc`] (call that first) or, without one, of rows at the
     /// configuration's rate. Reports (Model, then Health) go out at the end of each window
     /// only.
-    pub fn set_duty(&mut self, duty: Option<WireDuty>, shared: &Shared<P>) {
+    pub fn set_duty(&mut self, duty: Option<WireDuty>, shared: &Shared<P, S>) {
         self.duty = duty;
         let schedule = match (duty, self.config) {
             (Some(d), Some(config)) => {
+                let config = S::base(&config);
                 let (adc_hz, factor) = if self.adc_hz > 0.0 {
                     (
                         self.adc_hz,
@@ -169,6 +176,14 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         self.drift = None;
         self.windows = 0;
         shared.request_schedule(schedule);
+    }
+
+    /// Whether a periodic report is due at clock `now` (thread mode that sleeps through
+    /// the rows' interrupts wakes for it).
+    pub fn due(&self, now: u32) -> bool {
+        self.duty.is_none()
+            && self.period_ticks > 0
+            && now.wrapping_sub(self.last_report) >= self.period_ticks
     }
 
     /// The most clock ticks one screening took.
@@ -201,6 +216,15 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
 
     /// The latest model, once a screening made one.
     pub fn latest(&self) -> Option<&ModelSnapshot> {
+        match self.latest.as_ref() {
+            Some(DeviceMsg::Model(model)) => Some(model),
+            _ => None,
+        }
+    }
+
+    /// The latest model's frame (`Model`, or `SystemModel` for a system), once a
+    /// screening made one.
+    pub fn latest_message(&self) -> Option<&DeviceMsg> {
         self.latest.as_ref()
     }
 
@@ -217,7 +241,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     pub fn pass<L: Transport, K: Clock>(
         &mut self,
         rx: &mut Consumer<'_, u8>,
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
         link: &mut L,
         clock: &K,
         screened: impl FnOnce(),
@@ -243,7 +267,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     /// be waiting to take the final one).
     pub fn poll<L: Transport, K: Clock>(
         &mut self,
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
         link: &mut L,
         clock: &K,
         screened: impl FnOnce(),
@@ -255,8 +279,8 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             let spent = clock.now().wrapping_sub(start);
             self.screen_cost = spent;
             self.screen_cost_max = self.screen_cost_max.max(spent);
-            if made && let Some(model) = snapshot.model() {
-                self.latest = wire::snapshot(model, cause).ok();
+            if made && let Some(message) = snapshot.message(cause) {
+                self.latest = Some(message);
             }
             critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
             screened();
@@ -289,7 +313,8 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     /// A window's model is in: how it moved from the previous window's.
     fn end_window(&mut self) {
         self.windows = self.windows.saturating_add(1);
-        let Some(latest) = self.latest.as_ref() else {
+        // Drift is reported for one equation's model (a system's is in its frames).
+        let Some(DeviceMsg::Model(latest)) = self.latest.as_ref() else {
             return;
         };
         let drift = match &self.previous {
@@ -326,7 +351,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     pub fn receive<L: Transport, K: Clock>(
         &mut self,
         bytes: &[u8],
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
         link: &mut L,
     ) -> Result<(), L::Error> {
         for &byte in bytes {
@@ -353,12 +378,14 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     fn command<L: Transport, K: Clock>(
         &mut self,
         message: HostMsg,
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
         link: &mut L,
     ) -> Result<(), L::Error> {
+        if let Some(parsed) = S::from_host(&message) {
+            return self.configure(parsed, shared, link);
+        }
         match message {
             HostMsg::Hello { .. } => self.send(link, &hello::<W, P>()),
-            HostMsg::Configure(wire_config) => self.configure(wire_config, shared, link),
             HostMsg::Reset => match self.config {
                 Some(config) => {
                     shared.request_config_at(config, self.offset);
@@ -375,11 +402,8 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
             HostMsg::Samples(batch) => self.nak(link, batch.seq, NakReason::Busy),
             HostMsg::Compact(batch) => self.nak(link, batch.seq, NakReason::Busy),
             HostMsg::ModelPart { .. } => self.nak(link, CONTROL_SEQ, NakReason::Busy),
-            // This instrument identifies one equation (see the `system` engine for two).
-            #[allow(
-                unreachable_patterns,
-                reason = "lssi-proto's system messages, when present"
-            )]
+            // A configuration for the other kind of identifier (one equation on a system's
+            // instrument, or a system on one equation's), or system samples.
             _ => self.nak(link, CONTROL_SEQ, NakReason::BadConfig),
         }
     }
@@ -388,13 +412,13 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     /// for the board to store once acked.
     fn configure<L: Transport>(
         &mut self,
-        wire_config: WireConfig,
-        shared: &Shared<P>,
+        (config, duty, keep): FromHost<S::Config>,
+        shared: &Shared<P, S>,
         link: &mut L,
     ) -> Result<(), L::Error> {
-        let config = wire::config_from_wire(&wire_config);
+        let base = S::base(&config);
         let decimator = if self.adc_hz > 0.0 {
-            match factor_for(self.adc_hz, config.sample_period)
+            match factor_for(self.adc_hz, base.sample_period)
                 .and_then(|d| Decimator::new(d, self.order).ok())
             {
                 Some(d) => Some(d),
@@ -402,7 +426,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                     log!(
                         warn,
                         "Configure: a row period of {=f64} s is no whole number of ADC conversions",
-                        config.sample_period
+                        base.sample_period
                     );
                     return self.nak(link, CONTROL_SEQ, NakReason::BadConfig);
                 }
@@ -410,7 +434,8 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
         } else {
             None
         };
-        match config.validate::<W, P, C>() {
+        let rate_hz = (1.0 / base.sample_period) as f32;
+        match S::validate::<W, C>(&config) {
             Ok(()) => {
                 if let Some(d) = decimator {
                     self.offset = d.time_offset(self.adc_hz);
@@ -418,13 +443,13 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
                 }
                 shared.request_config_at(config, self.offset);
                 self.config = Some(config);
-                self.set_duty(wire_config.duty, shared);
-                self.to_keep = Some(wire_config);
-                self.rate_hz = (1.0 / config.sample_period) as f32;
+                self.set_duty(duty, shared);
+                self.to_keep = keep;
+                self.rate_hz = rate_hz;
                 self.latest = None;
                 self.send(link, &DeviceMsg::Ack { seq: CONTROL_SEQ })
             }
-            Err(error) => self.nak(link, CONTROL_SEQ, wire::config_nak(&error)),
+            Err(reason) => self.nak(link, CONTROL_SEQ, reason),
         }
     }
 
@@ -439,7 +464,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     }
 
     /// The health report now.
-    pub fn health<K: Clock>(&self, shared: &Shared<P>) -> DeviceMsg {
+    pub fn health<K: Clock>(&self, shared: &Shared<P, S>) -> DeviceMsg {
         let s = shared.status();
         let c = &shared.counters;
         let ticks_to_ns = |ticks: u32| -> u32 {
@@ -473,12 +498,9 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     #[inline(never)]
     fn send_model<L: Transport>(&mut self, link: &mut L) -> Result<(), L::Error> {
         match self.latest.take() {
-            Some(model) => {
-                let message = DeviceMsg::Model(model);
+            Some(message) => {
                 let sent = self.send(link, &message);
-                if let DeviceMsg::Model(model) = message {
-                    self.latest = Some(model);
-                }
+                self.latest = Some(message);
                 sent
             }
             None => Ok(()),
@@ -488,7 +510,7 @@ impl<const W: usize, const P: usize, const C: usize> Reporter<W, P, C> {
     #[inline(never)]
     fn send_health<L: Transport, K: Clock>(
         &mut self,
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
         link: &mut L,
     ) -> Result<(), L::Error> {
         let health = self.health::<K>(shared);

@@ -1,6 +1,6 @@
 //! The sampling interrupt's part.
 
-use super::{Counters, Event, Reading, Shared};
+use super::{Counters, Event, Reading, Screening, Shared};
 use crate::decimate::Decimator;
 use core::sync::atomic::Ordering;
 use heapless::spsc::Producer;
@@ -138,11 +138,11 @@ impl<'q> Sampler<'q> {
 
     /// One timer interrupt's conversion, with the decimator thread mode asked for (if
     /// any) put in first: see [`Sampler::tick`].
-    pub fn convert<const P: usize>(
+    pub fn convert<const P: usize, S: Screening>(
         &mut self,
         stamp: u32,
         reading: Reading,
-        shared: &Shared<P>,
+        shared: &Shared<P, S>,
     ) -> bool {
         if let Some(decimator) = shared.take_decimator() {
             self.set_decimator(decimator);
@@ -196,23 +196,35 @@ impl<'q> Sampler<'q> {
             reading.x = f32::NAN;
             counters.stuck.fetch_add(1, Ordering::Relaxed);
         }
-        // x, then v and u packed after it when present (1 to 3 channels accumulated).
-        let (values, channels) = match (reading.v, reading.u) {
-            (None, None) => ([reading.x, 0.0, 0.0], 1),
-            (Some(v), None) => ([reading.x, v, 0.0], 2),
-            (None, Some(u)) => ([reading.x, u, 0.0], 2),
-            (Some(v), Some(u)) => ([reading.x, v, u], 3),
-        };
-        let Some(row) = self.decimator.push_channels(values, channels) else {
+        // x, then v, u and the electrical channel packed after it when present (1 to 3
+        // channels accumulated: a fourth, all of v, u and e, is dropped, and the system's
+        // identifier rejects the row for its missing channel).
+        let mut values = [reading.x, 0.0, 0.0];
+        let mut channels = 1;
+        for value in [reading.v, reading.u, reading.e].into_iter().flatten() {
+            if let Some(slot) = values.get_mut(channels) {
+                *slot = value;
+            }
+            channels += 1;
+        }
+        let Some(row) = self
+            .decimator
+            .push_channels(values, channels.min(values.len()))
+        else {
             return false;
         };
-        let (x, v, u) = match (reading.v, reading.u) {
-            (None, None) => (row[0], None, None),
-            (Some(_), None) => (row[0], Some(row[1]), None),
-            (None, Some(_)) => (row[0], None, Some(row[1])),
-            (Some(_), Some(_)) => (row[0], Some(row[1]), Some(row[2])),
+        let mut next = 1;
+        let mut unpack = |present: Option<f32>| {
+            present.and_then(|_| {
+                let value = row.get(next).copied();
+                next += 1;
+                value
+            })
         };
-        let reading = Reading { x, v, u };
+        let v = unpack(reading.v);
+        let u = unpack(reading.u);
+        let e = unpack(reading.e);
+        let reading = Reading { x: row[0], v, u, e };
         // Row r is the block that ends with conversion (r + order) · factor − 1.
         let order = u64::from(self.decimator.order());
         let index = (c + 1) / factor - order;

@@ -3,13 +3,13 @@
 
 #[cfg(doc)]
 use super::STUCK_RUN;
-use super::Schedule;
+use super::{Schedule, Screening};
 use crate::decimate::Decimator;
 use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use critical_section::Mutex;
 use heapless::spsc::Queue;
-use lssi_core::{Config, Snapshot};
+use lssi_core::Snapshot;
 use lssi_proto::SnapshotCause;
 
 /// Slots of the sample queue: it holds `QUEUE_SLOTS − 1` = 64 events.
@@ -18,7 +18,8 @@ pub const QUEUE_SLOTS: usize = 65;
 /// The queue between the sampling interrupt and the identify task.
 pub type EventQueue = Queue<Event, QUEUE_SLOTS>;
 
-/// One reading of the sensor's channels (v and u only when the configuration has them).
+/// One reading of the sensor's channels (v, u and the electrical channel only when the
+/// configuration has them).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Reading {
     /// Displacement.
@@ -27,6 +28,21 @@ pub struct Reading {
     pub v: Option<f32>,
     /// Measured excitation.
     pub u: Option<f32>,
+    /// The electrical channel (a harvester's voltage across its load, or its current), for
+    /// a system's identifier (`SystemEngine`); one equation leaves it out.
+    pub e: Option<f32>,
+}
+
+impl Reading {
+    /// A reading of the displacement alone.
+    pub const fn x(x: f32) -> Self {
+        Self {
+            x,
+            v: None,
+            u: None,
+            e: None,
+        }
+    }
 }
 
 /// What the sampling interrupt queues.
@@ -75,17 +91,18 @@ pub struct Counters {
 }
 
 /// What the contexts hand each other: the counters, the snapshot's two mailboxes and a
-/// configuration for the identify task to apply. In a `static`.
-pub struct Shared<const P: usize> {
+/// configuration for the identify task to apply. In a `static`. `S` is what is screened:
+/// one equation's [`Snapshot`] (the default) or a system's (`SystemEngine`).
+pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     /// The counters.
     pub counters: Counters,
     /// The snapshot while nobody screens it (the identify task fills it from here).
-    pub(super) free: Mutex<Cell<Option<&'static mut Snapshot<f32, P>>>>,
+    pub(super) free: Mutex<Cell<Option<&'static mut S>>>,
     /// The snapshot waiting for (or under) its screening, with why it was taken.
-    pub(super) full: Mutex<Cell<Option<Taken<P>>>>,
+    pub(super) full: Mutex<Cell<Option<Taken<S>>>>,
     /// A configuration for the identify task to apply before its next sample, with the
     /// time of row 0 (the decimator's delay).
-    pub(super) pending: Mutex<Cell<Option<(Config, f64)>>>,
+    pub(super) pending: Mutex<Cell<Option<Pending<S>>>>,
     /// A decimator for the sampling interrupt to put in before its next conversion.
     pub(super) decimator: Mutex<Cell<Option<Decimator>>>,
     /// A duty cycle for the sampling interrupt to follow from its next conversion.
@@ -97,9 +114,12 @@ pub struct Shared<const P: usize> {
     pub(super) status: Mutex<Cell<Status>>,
 }
 
+/// A configuration for the identify task, with the time of row 0.
+pub(super) type Pending<S> = (<S as Screening>::Config, f64);
+
 /// A snapshot taken for a screening, with why it was taken and whether it ends a duty
 /// cycle's window.
-pub(super) type Taken<const P: usize> = (&'static mut Snapshot<f32, P>, SnapshotCause, bool);
+pub(super) type Taken<S> = (&'static mut S, SnapshotCause, bool);
 
 /// The identifier's figures as the identify task last published them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -123,7 +143,7 @@ pub struct Status {
     pub ended: bool,
 }
 
-impl<const P: usize> Shared<P> {
+impl<const P: usize, S: Screening> Shared<P, S> {
     /// Empty: no snapshot yet (see [`Shared::give_snapshot`]).
     pub const fn new() -> Self {
         Self {
@@ -155,18 +175,18 @@ impl<const P: usize> Shared<P> {
     }
 
     /// Hands over the one snapshot (at start-up, from a `static` the board owns).
-    pub fn give_snapshot(&self, snapshot: &'static mut Snapshot<f32, P>) {
+    pub fn give_snapshot(&self, snapshot: &'static mut S) {
         critical_section::with(|cs| self.free.borrow(cs).set(Some(snapshot)));
     }
 
     /// Asks the identify task to configure the identifier anew before its next sample.
-    pub fn request_config(&self, config: Config) {
+    pub fn request_config(&self, config: S::Config) {
         self.request_config_at(config, 0.0);
     }
 
     /// Asks the identify task to configure the identifier anew before its next sample,
     /// row `i` at time `i · sample_period + offset` seconds.
-    pub fn request_config_at(&self, config: Config, offset: f64) {
+    pub fn request_config_at(&self, config: S::Config, offset: f64) {
         critical_section::with(|cs| self.pending.borrow(cs).set(Some((config, offset))));
     }
 
@@ -206,16 +226,16 @@ impl<const P: usize> Shared<P> {
         critical_section::with(|cs| self.status.borrow(cs).get())
     }
 
-    pub(super) fn take_free(&self) -> Option<&'static mut Snapshot<f32, P>> {
+    pub(super) fn take_free(&self) -> Option<&'static mut S> {
         critical_section::with(|cs| self.free.borrow(cs).take())
     }
 
-    pub(super) fn take_full(&self) -> Option<Taken<P>> {
+    pub(super) fn take_full(&self) -> Option<Taken<S>> {
         critical_section::with(|cs| self.full.borrow(cs).take())
     }
 }
 
-impl<const P: usize> Default for Shared<P> {
+impl<const P: usize, S: Screening> Default for Shared<P, S> {
     fn default() -> Self {
         Self::new()
     }

@@ -89,6 +89,7 @@ fn run(
                 x: reading(i),
                 v: None,
                 u: None,
+                e: None,
             },
             &shared.counters,
         );
@@ -302,6 +303,7 @@ fn a_decimating_sampler_queues_one_row_every_factor_conversions() {
                 x,
                 v: None,
                 u: None,
+                e: None,
             },
             &counters.counters,
         ) {
@@ -411,6 +413,7 @@ fn windows(
             x: reading(i),
             v: None,
             u: None,
+            e: None,
         };
         if sampler.convert(clock.now(), reading, shared) {
             identify.run(shared, &clock);
@@ -504,5 +507,180 @@ fn a_changed_harvester_shows_as_drift_between_windows() {
     assert!(
         after > steady_max,
         "after the change {after}, unchanged at most {steady_max}"
+    );
+}
+
+/// The two-channel instrument on the host: x and V through the sampler (decimated together
+/// by 4, a CIC of order 3), the system's identify task, thread mode's screening on a
+/// `SystemShot` with screenings lagging the rows: every scheduled model and the final one
+/// are, bit for bit, lssi-core's `SystemIdentifier` pushed the same rows; a host's
+/// `Configure` (one equation) is refused by this instrument, a `ConfigureSystem` accepted.
+#[test]
+fn the_two_channel_instrument_reports_the_systems_own_models() {
+    use lssi_core::library::Electrical;
+    use lssi_core::{LibraryConfig, PolyFamily, SystemConfig, SystemIdentifier, SystemSample};
+    use lssi_device::decimate::Decimator;
+    use lssi_device::standalone::{SystemEngine, SystemShot};
+    use lssi_device::system::{system_config_to_wire, system_snapshot};
+    use lssi_proto::{CONTROL_SEQ, NakReason};
+    use lssi_testkit::harvester::Piezo;
+
+    const C2: usize = 2;
+    let factor = 4;
+    let adc_dt = 0.0025;
+    let config = SystemConfig {
+        base: Config {
+            sample_period: adc_dt * f64::from(factor),
+            window: 41,
+            derivative_degree: 5,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: 1,
+                input: false,
+            },
+            omega: 0.8,
+            screening_period: 3_000,
+            ..Config::default()
+        },
+        electrical: [Some(Electrical::Voltage), None],
+        coupling_order: 1,
+    };
+    let points = Piezo::bistable().simulate(40_000, adc_dt);
+
+    type Shared2 = Shared<P, SystemShot<P>>;
+    let shared: &'static Shared2 = Box::leak(Box::new(Shared::new()));
+    shared.give_snapshot(Box::leak(Box::new(SystemShot::snapshot())));
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let mut decimator = Decimator::new(factor, 3).expect("a decimator");
+    sampler.set_decimator(decimator);
+    let offset = decimator.time_offset(1.0 / adc_dt);
+    let engine: &'static mut SystemEngine<W, P, C2> = Box::leak(Box::new(SystemEngine::new()));
+    engine.configure_at(config, offset).expect("valid");
+    let identify: &'static IdentifyTask<W, P, C2, SystemEngine<W, P, C2>> =
+        Box::leak(Box::new(IdentifyTask::new()));
+    identify.give(engine, consumer);
+    let mut reporter: Reporter<W, P, C2, SystemShot<P>> = Reporter::new(config, 100.0, 0);
+    let clock = FakeClock(Cell::new(0));
+    let mut wire = Wire::default();
+    // The models thread mode made, as it keeps them (it sends them every period; 0 here).
+    let mut made: Vec<lssi_proto::SystemSnapshot> = Vec::new();
+    let mut keep = |reporter: &Reporter<W, P, C2, SystemShot<P>>| {
+        if let Some(DeviceMsg::SystemModel(s)) = reporter.latest_message()
+            && made.last() != Some(s)
+        {
+            made.push(s.clone());
+        }
+    };
+    for (i, p) in points.iter().enumerate() {
+        clock.0.set(clock.0.get() + 2_500);
+        let reading = Reading {
+            x: p.x as f32,
+            v: None,
+            u: None,
+            e: Some(p.e as f32),
+        };
+        sampler.tick(clock.now(), reading, &shared.counters);
+        if i % 64 == 63 {
+            identify.run(shared, &clock);
+        }
+        if i % 2_000 == 1_999 {
+            let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+            keep(&reporter);
+        }
+    }
+    assert!(sampler.end());
+    for _ in 0..4 {
+        identify.run(shared, &clock);
+        let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+        keep(&reporter);
+    }
+    assert!(reporter.finished());
+    let frames = decode(&wire.0);
+
+    // The host: the same rows (decimated by the same decimator) through SystemIdentifier.
+    let mut id: Box<SystemIdentifier<f32, W, P, 2, C2>> =
+        Box::new(SystemIdentifier::new(config).expect("valid"));
+    let mut scheduled = Vec::new();
+    let mut rows = 0u64;
+    for p in &points {
+        let Some(row) = decimator.push_channels([p.x as f32, p.e as f32, 0.0], 2) else {
+            continue;
+        };
+        let e = [row[1]];
+        let sample = SystemSample {
+            t: rows as f64 * config.base.sample_period + offset,
+            x: row[0],
+            v: None,
+            u: None,
+            electrical: &e,
+        };
+        rows += 1;
+        if id.push(&sample) == Ok(true) {
+            let model = id.model().expect("a model");
+            scheduled.push(system_snapshot(model, SnapshotCause::Scheduled).expect("fits"));
+        }
+    }
+    assert!(id.screen());
+    let want = system_snapshot(id.model().expect("a model"), SnapshotCause::Final).expect("fits");
+    let sent: Vec<_> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::SystemModel(s) => Some(s.clone()),
+            DeviceMsg::Model(_) => panic!("a single-equation Model from the system's instrument"),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        sent.len(),
+        1,
+        "the final model alone is sent (no report period)"
+    );
+    assert_eq!(sent.last(), made.last());
+    let got = made;
+    assert_eq!(
+        shared
+            .counters
+            .screenings_skipped
+            .load(std::sync::atomic::Ordering::Relaxed),
+        0
+    );
+    let (last, earlier) = got.split_last().expect("model frames");
+    assert_eq!(last, &want, "the final model");
+    assert!(
+        scheduled.len() >= 2,
+        "{} scheduled screenings",
+        scheduled.len()
+    );
+    assert_eq!(earlier, &scheduled[..], "the scheduled models, in order");
+    let bits = |s: &lssi_proto::SystemSnapshot| -> Vec<u32> {
+        s.equations
+            .iter()
+            .flat_map(|e| e.coefficients.iter().map(|c| c.to_bits()))
+            .collect()
+    };
+    assert_eq!(bits(last), bits(&want));
+
+    // Commands: one equation's Configure is refused, a system's accepted.
+    let mut out = Wire::default();
+    let mut frame = [0u8; lssi_proto::MAX_HOST_FRAME_LEN];
+    let single = lssi_device::wire::config_to_wire(&config.base).expect("encodable");
+    let len = encode(&HostMsg::Configure(single), &mut frame).expect("encodes");
+    let Ok(()) = reporter.receive::<_, FakeClock>(&frame[..len], shared, &mut out);
+    let wire_system = system_config_to_wire(&config).expect("encodable");
+    let len = encode(&HostMsg::ConfigureSystem(wire_system), &mut frame).expect("encodes");
+    let Ok(()) = reporter.receive::<_, FakeClock>(&frame[..len], shared, &mut out);
+    assert_eq!(
+        decode(&out.0),
+        [
+            DeviceMsg::Nak {
+                seq: CONTROL_SEQ,
+                reason: NakReason::BadConfig
+            },
+            DeviceMsg::Ack { seq: CONTROL_SEQ }
+        ]
     );
 }

@@ -9,10 +9,25 @@
 //! | TIMER0 | 0x00 | one conversion → the decimator; a row → the 64-place queue (overruns counted), pends identify |
 //! | UART0 RX/TX | 0x40 | bytes ↔ bounded rings |
 //! | identify (IRQ 10, pended) | 0x80 | queue → identifier rows; a screening's snapshot to thread mode |
+//! | SysTick (the slicer) | 0xE0 | thread mode awake for a slice: `wfi` until the next row |
 //! | thread mode | lowest | the screening on the snapshot; frames; host commands; `wfi` |
+//!
+//! **No long wake-up.** The screening (≈ 8 M instructions at the configuration `lssi
+//! identify` picks for eveh at 200 rows a second) is spread over rows: while thread mode is
+//! awake, SysTick counts [`SLICE_TICKS`]; when it fires, its handler (the lowest priority,
+//! so it preempts only thread mode) sleeps with `wfi` until a row period of conversions has
+//! passed (the rows and conversions are taken meanwhile, at their own priorities), then
+//! returns, and the screening goes on where it was. The screening is the same code on the
+//! same snapshot, so its model is the same bit for bit; it ends a few hundred rows later
+//! instead of in one wake-up of a few hundred milliseconds.
 //!
 //! When the recording ends, the last model (a screening of every sample, as `lssi identify`
 //! makes) and a Health frame go out, the UART drains and QEMU exits with status 0.
+//!
+//! Built with the `system` feature, it is the two-channel instrument: each conversion reads
+//! x and the voltage V across the harvester's load (the recording's electrical channel),
+//! both decimated to rows, and lssi-core's `SystemIdentifier` identifies x'' and V'
+//! (`SystemModel` frames; a stored or host's `ConfigureSystem`).
 
 #![no_std]
 #![no_main]
@@ -22,32 +37,105 @@
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use cortex_m::peripheral::NVIC;
+use cortex_m::peripheral::scb::SystemHandler;
+use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
-use lssi_core::{Config, Snapshot};
+use lssi_core::Config;
 use lssi_device::decimate::{self, Decimator};
-use lssi_device::standalone::{Clock, Engine, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
-use lssi_device::{DEFAULT_TERMS, Transport, wire};
+use lssi_device::standalone::{Clock, EventQueue, IdentifyTask, Reporter, Sampler, Shared};
+use lssi_device::{DEFAULT_TERMS, Transport};
 use lssi_firmware::mps2::{self, BoardClock, Irq, Recording};
 use lssi_firmware::once::TakeOnce;
 use lssi_firmware::{CHANNELS, WINDOW, platform, uart};
 use lssi_proto::{HostMsg, WireDuty, decode_frame};
 
-type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+/// One equation (x'' from x): the default image.
+#[cfg(not(feature = "system"))]
+mod flavour {
+    use lssi_core::{Config, Snapshot};
+    use lssi_device::DEFAULT_TERMS;
+    use lssi_device::standalone::Engine;
+    use lssi_firmware::{CHANNELS, WINDOW};
+    use lssi_proto::{HostMsg, WireDuty};
+
+    pub type Id = Engine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+    pub type Shot = Snapshot<f32, DEFAULT_TERMS>;
+    pub type IdConfig = Config;
+    pub const EMPTY: Shot = Snapshot::empty();
+
+    /// The image's configuration for the recording's channels.
+    pub fn config(base: Config) -> IdConfig {
+        base
+    }
+
+    pub fn base(config: &mut IdConfig) -> &mut Config {
+        config
+    }
+
+    pub fn from_host(message: HostMsg) -> Option<(IdConfig, Option<WireDuty>)> {
+        match message {
+            HostMsg::Configure(c) => Some((lssi_device::wire::config_from_wire(&c), c.duty)),
+            _ => None,
+        }
+    }
+}
+
+/// A system (x'' and V' from x and V): the `system` feature's image.
+#[cfg(feature = "system")]
+mod flavour {
+    use lssi_core::library::Electrical;
+    use lssi_core::{Config, SystemConfig};
+    use lssi_device::DEFAULT_TERMS;
+    use lssi_device::standalone::{SystemEngine, SystemShot};
+    use lssi_firmware::{CHANNELS, WINDOW};
+    use lssi_proto::{HostMsg, WireDuty};
+
+    pub type Id = SystemEngine<WINDOW, DEFAULT_TERMS, CHANNELS>;
+    pub type Shot = SystemShot<DEFAULT_TERMS>;
+    pub type IdConfig = SystemConfig;
+    pub const EMPTY: Shot = SystemShot::snapshot();
+
+    /// The image's configuration: the voltage as the electrical channel, coupling terms of
+    /// degree 1 (`lssi identify`'s default).
+    pub fn config(base: Config) -> IdConfig {
+        SystemConfig {
+            base,
+            electrical: [Some(Electrical::Voltage), None],
+            coupling_order: 1,
+        }
+    }
+
+    pub fn base(config: &mut IdConfig) -> &mut Config {
+        &mut config.base
+    }
+
+    pub fn from_host(message: HostMsg) -> Option<(IdConfig, Option<WireDuty>)> {
+        match message {
+            HostMsg::ConfigureSystem(c) => Some((
+                lssi_device::system::system_config_from_wire(&c),
+                c.base.duty,
+            )),
+            _ => None,
+        }
+    }
+}
+
+use flavour::{EMPTY, Id, IdConfig, Shot};
 
 /// Bytes the receive ring holds (one more slot than that).
 const RX_SLOTS: usize = 257;
 /// Bytes the transmit ring holds (one more slot than that): two Model frames.
 const TX_SLOTS: usize = 1537;
 
-static SHARED: Shared<DEFAULT_TERMS> = Shared::new();
+static SHARED: Shared<DEFAULT_TERMS, Shot> = Shared::new();
 #[allow(unsafe_code)]
 #[unsafe(link_section = ".bss.lssi.ENGINE")]
-static ENGINE: TakeOnce<Id> = TakeOnce::new(Engine::new());
+static ENGINE: TakeOnce<Id> = TakeOnce::new(Id::new());
 #[allow(unsafe_code)]
 #[unsafe(link_section = ".bss.lssi.SNAPSHOT")]
-static SNAPSHOT: TakeOnce<Snapshot<f32, DEFAULT_TERMS>> = TakeOnce::new(Snapshot::empty());
+static SNAPSHOT: TakeOnce<Shot> = TakeOnce::new(EMPTY);
 static QUEUE: TakeOnce<EventQueue> = TakeOnce::new(Queue::new());
 static RX: TakeOnce<Queue<u8, RX_SLOTS>> = TakeOnce::new(Queue::new());
 static TX: TakeOnce<Queue<u8, TX_SLOTS>> = TakeOnce::new(Queue::new());
@@ -60,19 +148,39 @@ struct Sensor {
 }
 
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
-static IDENTIFY: IdentifyTask<WINDOW, DEFAULT_TERMS, CHANNELS> = IdentifyTask::new();
+static IDENTIFY: IdentifyTask<WINDOW, DEFAULT_TERMS, CHANNELS, Id> = IdentifyTask::new();
 static RX_IN: Mutex<RefCell<Option<Producer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 static TX_OUT: Mutex<RefCell<Option<Consumer<'static, u8>>>> = Mutex::new(RefCell::new(None));
 /// The TX interrupt found the ring empty: the next write must start it again.
 static TX_IDLE: AtomicBool = AtomicBool::new(true);
 /// Received bytes lost (ring full or UART overrun).
 static RX_LOST: AtomicU32 = AtomicU32::new(0);
-/// The longest the core stayed awake between two `wfi`s, clock ticks (the interrupts taken
-/// in between included): the longest wake-up, what a harvester's storage capacitor must
-/// carry at run current.
+/// The longest the core stayed awake between two `wfi`s while sampling, clock ticks (the
+/// interrupts taken in between included): the longest wake-up, what a harvester's storage
+/// capacitor must carry at run current.
 static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
+/// The same once the recording ended (QEMU's recording only: the final screening, which no
+/// row interrupts, runs in one wake-up).
+static AWAKE_MAX_ENDED: AtomicU32 = AtomicU32::new(0);
 /// `wfi`s executed (wake-ups).
 static SLEEPS: AtomicU32 = AtomicU32::new(0);
+/// Clock ticks awake while sampling, all wake-ups together (what the energy figure of
+/// scripts/firmware-bench.sh takes: rows, conversions, frames and screenings).
+static AWAKE_TOTAL: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
+/// The clock when the core last woke.
+static WOKE: AtomicU32 = AtomicU32::new(0);
+/// TIMER0's interrupts so far (conversions, or their times in an interval): the slicer
+/// sleeps until a row period of them has passed.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+/// The sampling timer stopped (the recording ended): the slicer sleeps no more.
+static STOPPED: AtomicBool = AtomicBool::new(false);
+/// Times the slicer put thread mode to sleep until the next row.
+static SLICES: AtomicU32 = AtomicU32::new(0);
+
+/// Thread mode's longest stretch awake before the slicer makes it sleep until the next row,
+/// in SysTick counts (the 25 MHz system clock): 1 ms, a fifth of a row at 200 rows a second
+/// (62,500 instructions under `-icount shift=4`; 16,000 cycles of an L432 at 16 MHz).
+pub const SLICE_TICKS: u32 = 25_000;
 
 /// The row rate of the image's own configuration, Hz: about 60 rows a forcing period of
 /// a harvester forced at 3.4 Hz (eveh, Ω = 21.4 rad/s), 10 a period at 20 Hz. The ADC
@@ -109,11 +217,12 @@ fn default_config(adc_hz: f64) -> Config {
 
 /// Configures `engine` with `config`, its rows decimated from the ADC's `adc_hz` (a whole
 /// number of conversions a row); the decimator, or `None` if either is refused.
-fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> {
-    let Some(d) = decimate::factor_for(adc_hz, config.sample_period) else {
+fn configure(engine: &mut Id, adc_hz: f64, mut config: IdConfig) -> Option<Decimator> {
+    let period = flavour::base(&mut config).sample_period;
+    let Some(d) = decimate::factor_for(adc_hz, period) else {
         defmt::warn!(
             "a row period of {=f64} s is no whole number of conversions at {=f64} Hz",
-            config.sample_period,
+            period,
             adc_hz
         );
         return None;
@@ -130,15 +239,18 @@ fn configure(engine: &mut Id, adc_hz: f64, config: Config) -> Option<Decimator> 
 
 /// The stored configuration (a host's `Configure` frame) and its duty cycle, if there is a
 /// valid one.
-fn stored_config(recording: &Recording) -> Option<(Config, Option<WireDuty>)> {
+fn stored_config(recording: &Recording) -> Option<(IdConfig, Option<WireDuty>)> {
     let mut buffer = [0u8; mps2::MAX_CONFIG];
     let frame = recording.config_frame(&mut buffer);
     if frame.is_empty() {
         return None;
     }
-    match decode_frame::<HostMsg>(frame) {
-        Ok(HostMsg::Configure(c)) => Some((wire::config_from_wire(&c), c.duty)),
-        _ => {
+    match decode_frame::<HostMsg>(frame)
+        .ok()
+        .and_then(flavour::from_host)
+    {
+        Some(stored) => Some(stored),
+        None => {
             defmt::warn!("the stored configuration does not decode: using the image's");
             None
         }
@@ -171,19 +283,19 @@ fn main() -> ! {
         platform::exit(platform::EXIT_PANIC)
     };
     let (mut config, duty) = stored_config(&recording).map_or_else(
-        || (default_config(recording.rate_hz), None),
+        || (flavour::config(default_config(recording.rate_hz)), None),
         |(c, d)| (c, d),
     );
-    config.channels.velocity = recording.velocity;
-    config.channels.input = recording.input;
+    flavour::base(&mut config).channels.velocity = recording.velocity;
+    flavour::base(&mut config).channels.input = recording.input;
     let rate = recording.rate_hz;
     let decimator = match configure(engine, rate, config) {
         Some(d) => d,
         None => {
             defmt::warn!("using the image's configuration");
-            config = default_config(rate);
-            config.channels.velocity = recording.velocity;
-            config.channels.input = recording.input;
+            config = flavour::config(default_config(rate));
+            flavour::base(&mut config).channels.velocity = recording.velocity;
+            flavour::base(&mut config).channels.input = recording.input;
             let Some(d) = configure(engine, rate, config) else {
                 platform::exit(platform::EXIT_PANIC)
             };
@@ -206,7 +318,8 @@ fn main() -> ! {
         RX_IN.borrow_ref_mut(cs).replace(rx_in);
         TX_OUT.borrow_ref_mut(cs).replace(tx_out);
     });
-    let row_hz = 1.0 / config.sample_period;
+    let base = *flavour::base(&mut config);
+    let row_hz = 1.0 / base.sample_period;
     defmt::info!(
         "lssi standalone: {=u32} conversions at {=f64} Hz, decimated by {=u32} (CIC order {=u8}) to rows at {=f64} Hz, window {=usize}, screening every {=u32}",
         recording.len,
@@ -214,10 +327,10 @@ fn main() -> ! {
         decimator.factor(),
         decimator.order(),
         row_hz,
-        config.window,
-        config.screening_period
+        base.window,
+        base.screening_period
     );
-    let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS> =
+    let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot> =
         Reporter::new(config, row_hz as f32, BoardClock::HZ);
     reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
     // A duty cycle: windows of identification, Model and Health at the end of each, the
@@ -246,10 +359,20 @@ fn main() -> ! {
         NVIC::unmask(Irq::Uart0Tx);
         NVIC::unmask(Irq::Identify);
     }
+    #[allow(unsafe_code)]
+    // SAFETY: the slicer's priority is set before SysTick's interrupt is enabled.
+    unsafe {
+        core.SCB.set_priority(SystemHandler::SysTick, 0xE0);
+    }
+    core.SYST.set_clock_source(SystClkSource::Core);
+    core.SYST.set_reload(SLICE_TICKS / 4 - 1);
+    core.SYST.clear_current();
+    core.SYST.enable_interrupt();
     mps2::uart_interrupts_on();
     mps2::start_sampling(mps2::sampling_reload(rate));
     let mut windows_logged = 0;
-    let mut woke = BoardClock.now();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+    slicer(true);
 
     loop {
         let Ok(idle) = reporter.pass(&mut rx_out, &SHARED, &mut link, &BoardClock, || {
@@ -271,26 +394,33 @@ fn main() -> ! {
                 drift.support_changes
             );
         }
-        if idle {
-            // Sleeps only if nothing waits; checked with interrupts off so that an
-            // interrupt in between still wakes the `wfi` (it is taken right after).
-            cortex_m::interrupt::free(|_| {
-                if !SHARED.screening_waiting() && !rx_out.ready() {
-                    let awake = BoardClock.now().wrapping_sub(woke);
-                    AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
-                    SLEEPS.fetch_add(1, Ordering::Relaxed);
-                    cortex_m::asm::wfi();
-                    // The interrupt that woke the core runs after this critical section:
-                    // it counts in the next wake-up.
-                    woke = BoardClock.now();
+        // Sleeps until thread mode has work: a snapshot to screen (the recording's final one
+        // too), a byte from the host, a report due. The rows' interrupts in between come and go
+        // without a pass of thread mode (its reporter's pass costs instructions every row
+        // otherwise). Checked with interrupts off so that an interrupt in between still
+        // wakes the `wfi` (it is taken right after).
+        while idle {
+            let work = cortex_m::interrupt::free(|_| {
+                let work =
+                    SHARED.screening_waiting() || rx_out.ready() || reporter.due(BoardClock.now());
+                if !work {
+                    // Asleep, thread mode needs no slicing: SysTick stops (it would wake
+                    // the core).
+                    slicer(false);
+                    sleep();
+                    slicer(true);
                 }
+                work
             });
+            if work {
+                break;
+            }
         }
     }
 }
 
 /// The recording is done: waits for the UART to send everything, logs the figures, exits.
-fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
+fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
     while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
         cortex_m::asm::wfi();
     }
@@ -307,13 +437,83 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS>) -> ! {
         RX_LOST.load(Ordering::Relaxed)
     );
     defmt::info!(
-        "wake-ups: {=u32}, the longest {=u32} ticks awake (2.5 instructions a tick under -icount shift=4), the worst row {=u32} ticks, the worst screening {=u32} ticks",
+        "wake-ups: {=u32}, the longest while sampling {=u32} ticks awake (2.5 instructions a tick under -icount shift=4), after the recording ended {=u32}; the worst row {=u32} ticks, the worst screening {=u32} ticks from start to end ({=u32} slices: sleeps until the next row)",
         SLEEPS.load(Ordering::Relaxed),
         AWAKE_MAX.load(Ordering::Relaxed),
+        AWAKE_MAX_ENDED.load(Ordering::Relaxed),
         status.cost_max,
-        reporter.screen_cost_max()
+        reporter.screen_cost_max(),
+        SLICES.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
+        critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
+        TICKS.load(Ordering::Relaxed)
     );
     platform::exit(platform::EXIT_SUCCESS)
+}
+
+/// Sleeps until an interrupt (with interrupts off: it is taken right after the caller's
+/// critical section, and counts in the next wake-up), keeping the longest wake-up.
+fn sleep() {
+    let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
+    if STOPPED.load(Ordering::Relaxed) {
+        AWAKE_MAX_ENDED.fetch_max(awake, Ordering::Relaxed);
+    } else {
+        AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
+        critical_section::with(|cs| {
+            let total = AWAKE_TOTAL.borrow(cs);
+            total.set(total.get() + u64::from(awake));
+        });
+    }
+    SLEEPS.fetch_add(1, Ordering::Relaxed);
+    cortex_m::asm::wfi();
+    WOKE.store(BoardClock.now(), Ordering::Relaxed);
+}
+
+/// Lets SysTick count (`on`, while the core is awake) or stops it (asleep: it would wake
+/// the core). Its count goes on from where it was: a slice may end early, and the handler
+/// then returns at once (it measures the time awake itself).
+fn slicer(on: bool) {
+    const CSR: usize = 0xE000_E010;
+    // ENABLE, TICKINT, CLKSOURCE (the processor clock): as set up in `main`.
+    let csr = if on { 0b111 } else { 0b110 };
+    #[allow(unsafe_code)]
+    // SAFETY: SysTick's control register, owned by this image's slicer (set up in `main`).
+    unsafe {
+        core::ptr::write_volatile(CSR as *mut u32, csr);
+    }
+}
+
+/// The slicer: if thread mode has been awake [`SLICE_TICKS`] since the core last woke (a
+/// screening, most likely), sleeps until a row period of conversions has passed, then lets
+/// it go on.
+#[exception]
+fn SysTick() {
+    let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
+    if awake < SLICE_TICKS || STOPPED.load(Ordering::Relaxed) {
+        return;
+    }
+    let factor = critical_section::with(|cs| {
+        SENSOR
+            .borrow_ref(cs)
+            .as_ref()
+            .map_or(1, |s| s.sampler.decimator().factor())
+    });
+    let start = TICKS.load(Ordering::Relaxed);
+    SLICES.fetch_add(1, Ordering::Relaxed);
+    loop {
+        let slept = cortex_m::interrupt::free(|_| {
+            let waiting = TICKS.load(Ordering::Relaxed).wrapping_sub(start) < factor;
+            if waiting && !STOPPED.load(Ordering::Relaxed) {
+                sleep();
+            }
+            waiting
+        });
+        if !slept || STOPPED.load(Ordering::Relaxed) {
+            break;
+        }
+    }
 }
 
 /// Thread mode's end of the UART: frames into the TX ring (the TX interrupt sends them).
@@ -349,6 +549,7 @@ fn kick_tx() {
 
 fn on_timer() {
     mps2::clear_sampling_irq();
+    TICKS.fetch_add(1, Ordering::Relaxed);
     let stamp = BoardClock.now();
     // The identify task is woken only when a row is made (once every decimation factor
     // conversions), and at the end.
@@ -364,6 +565,7 @@ fn on_timer() {
         } else {
             if sensor.sampler.end() {
                 mps2::stop_sampling();
+                STOPPED.store(true, Ordering::Relaxed);
             }
             true
         }

@@ -474,6 +474,13 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         self.has_model.then_some(&self.model)
     }
 
+    /// Samples in the derivative window (fill level of the displacement's ring buffer).
+    pub fn buffered(&self) -> usize {
+        self.rings
+            .first()
+            .map_or(0, |r| r.len().min(self.config.base.window))
+    }
+
     /// Samples between a sample arriving and its regression row (the fixed lag).
     pub fn lag_samples(&self) -> usize {
         (self.config.base.window - 1) / 2
@@ -843,6 +850,11 @@ impl<T: Real, const P: usize, const E: usize> SystemIdentifier<T, 1, P, E, 1> {
     /// An empty snapshot: `const` (a static of it lies in `.bss`).
     pub const fn snapshot() -> Self {
         Self::empty()
+    }
+
+    /// Forgets the model (after the identifier it is taken from was configured anew).
+    pub fn clear_model(&mut self) {
+        self.has_model = false;
     }
 }
 
