@@ -445,6 +445,12 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
         reporter.screen_cost_max(),
         SLICES.load(Ordering::Relaxed)
     );
+    // The whole image's deepest stack (cortex-m-rt painted it at reset): main's frame with
+    // the reporter, a screening, and the interrupts nested on it.
+    defmt::info!(
+        "stack: {=usize} bytes at the deepest; static RAM and this are what a part must hold",
+        lssi_firmware::stack::peak_used()
+    );
     defmt::info!(
         "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
         critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
