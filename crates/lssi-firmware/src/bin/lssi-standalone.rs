@@ -399,21 +399,24 @@ fn main() -> ! {
         // without a pass of thread mode (its reporter's pass costs instructions every row
         // otherwise). Checked with interrupts off so that an interrupt in between still
         // wakes the `wfi` (it is taken right after).
-        while idle {
-            let work = cortex_m::interrupt::free(|_| {
-                let work =
-                    SHARED.screening_waiting() || rx_out.ready() || reporter.due(BoardClock.now());
-                if !work {
-                    // Asleep, thread mode needs no slicing: SysTick stops (it would wake
-                    // the core).
-                    slicer(false);
-                    sleep();
-                    slicer(true);
+        if idle {
+            loop {
+                let work = cortex_m::interrupt::free(|_| {
+                    let work = SHARED.screening_waiting()
+                        || rx_out.ready()
+                        || reporter.due(BoardClock.now());
+                    if !work {
+                        // Asleep, thread mode needs no slicing: SysTick stops (it would wake
+                        // the core).
+                        slicer(false);
+                        sleep();
+                        slicer(true);
+                    }
+                    work
+                });
+                if work {
+                    break;
                 }
-                work
-            });
-            if work {
-                break;
             }
         }
     }
