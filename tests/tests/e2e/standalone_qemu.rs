@@ -326,7 +326,7 @@ fn run_standalone(
 
 /// Prints the firmware's defmt log (its semihosting output), decoded by `defmt-print` when
 /// that is installed (scripts/ci-qemu.sh installs it), and returns it; empty otherwise.
-fn print_log(elf: &Path, defmt: &[u8], dir: &Path) -> String {
+pub(crate) fn print_log(elf: &Path, defmt: &[u8], dir: &Path) -> String {
     let raw = dir.join("defmt.bin");
     std::fs::write(&raw, defmt).expect("write the log");
     let Ok(file) = std::fs::File::open(&raw) else {

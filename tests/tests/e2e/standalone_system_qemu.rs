@@ -180,6 +180,8 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         .output()
         .expect("QEMU runs");
     assert_eq!(status.status.code(), Some(0), "the firmware's exit status");
+    // Its log: wake-ups, the deepest stack, the time awake.
+    crate::standalone_qemu::print_log(&elf, &status.stdout, dir.path());
     let frames = std::fs::read(&uart).expect("the UART's bytes");
     let mut decoder = DeviceFrameDecoder::new();
     let messages: Vec<DeviceMsg> = decoder

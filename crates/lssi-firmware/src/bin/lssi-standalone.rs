@@ -399,21 +399,24 @@ fn main() -> ! {
         // without a pass of thread mode (its reporter's pass costs instructions every row
         // otherwise). Checked with interrupts off so that an interrupt in between still
         // wakes the `wfi` (it is taken right after).
-        while idle {
-            let work = cortex_m::interrupt::free(|_| {
-                let work =
-                    SHARED.screening_waiting() || rx_out.ready() || reporter.due(BoardClock.now());
-                if !work {
-                    // Asleep, thread mode needs no slicing: SysTick stops (it would wake
-                    // the core).
-                    slicer(false);
-                    sleep();
-                    slicer(true);
+        if idle {
+            loop {
+                let work = cortex_m::interrupt::free(|_| {
+                    let work = SHARED.screening_waiting()
+                        || rx_out.ready()
+                        || reporter.due(BoardClock.now());
+                    if !work {
+                        // Asleep, thread mode needs no slicing: SysTick stops (it would wake
+                        // the core).
+                        slicer(false);
+                        sleep();
+                        slicer(true);
+                    }
+                    work
+                });
+                if work {
+                    break;
                 }
-                work
-            });
-            if work {
-                break;
             }
         }
     }
@@ -444,6 +447,12 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
         status.cost_max,
         reporter.screen_cost_max(),
         SLICES.load(Ordering::Relaxed)
+    );
+    // The whole image's deepest stack (cortex-m-rt painted it at reset): main's frame with
+    // the reporter, a screening, and the interrupts nested on it.
+    defmt::info!(
+        "stack: {=usize} bytes at the deepest; static RAM and this are what a part must hold",
+        lssi_firmware::stack::peak_used()
     );
     defmt::info!(
         "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
