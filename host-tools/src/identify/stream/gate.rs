@@ -16,7 +16,8 @@ use super::sketch::Block;
 use crate::identify::quality::{self, MAX_UNEXPLAINED, Quality};
 use crate::identify::{Reference, Report};
 
-/// Failing blocks named one by one in the verdict (then how many more).
+/// Failing blocks named one by one in the verdict (the first ones and the last; then how many
+/// more).
 const NAMED_BLOCKS: usize = 2;
 
 /// Where a block lies: "t = a–b s (rows i–j)".
@@ -116,15 +117,21 @@ pub(super) fn judge(
             ));
         }
     }
+    // The first and the last failing blocks named (the last is nearest where a recording
+    // broke off), then how many more.
     let more = failing.len().saturating_sub(NAMED_BLOCKS);
     let checked = blocks.len();
-    quality
-        .failures
-        .extend(failing.into_iter().take(NAMED_BLOCKS));
     if more > 0 {
+        let last = failing.pop();
+        quality
+            .failures
+            .extend(failing.into_iter().take(NAMED_BLOCKS - 1));
+        quality.failures.extend(last);
         quality.failures.push(format!(
             "and {more} more of the {checked} stretches the gate checked fail"
         ));
+    } else {
+        quality.failures.extend(failing);
     }
     quality
 }

@@ -18,8 +18,7 @@
 //!    the forcing leaves (10⁻⁵ rad/s on 100 s moves it by 2 %); on 10⁷ rows the error is
 //!    ~10⁻⁸ rad/s where the excerpt alone leaves ~10⁻⁴.
 //! 4. The identifier takes the excerpt, then the rest of the file chunk by chunk; nothing of
-//!    the file is held but the excerpt.
-//!
+//!    the file is held but the gate's blocks (below).
 //! 5. The quality gate ([`crate::identify::quality`]) judges the whole file in the same pass
 //!    and bounded memory ([`gate`]): a second identifier in the other precision takes every
 //!    sample too, and blocks of [`StreamOptions::excerpt_rows`] rows are kept at a doubling
@@ -28,7 +27,11 @@
 //!    judged against its target's variance on all of them, and each is checked as a
 //!    recording in memory is (free run, short-horizon simulation, collinearity, a constant x,
 //!    a sweep): a part of the file the model does not explain withholds it, named by its
-//!    time span (exit status 3, as for a small file).
+//!    time span (exit status 3, as for a small file). The blocks' rows are bounded
+//!    ((2 · gate_blocks + 2) · excerpt_rows, 10 blocks of 65,536 rows by default), whatever
+//!    the file's length. What the gate does not see: a stretch between kept blocks shorter
+//!    than the stride, and a break in under about half of a block (the short-horizon check
+//!    takes the median of its windows); the held-out error over every row still weighs them.
 //!
 //! Blemishes as in memory ([`crate::identify::blemish`]): the excerpt is scanned as a small
 //! file is (NaN, time gaps and spikes left out or repaired, each named); the rest goes through
