@@ -18,6 +18,7 @@
 //! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
 
 pub mod power;
+pub mod quality;
 pub mod report;
 pub mod simulate;
 
@@ -468,7 +469,9 @@ pub fn identify_command(
     options: &Options,
     args: &SystemArgs,
     json: bool,
+    no_refine: bool,
 ) -> Result<(), CliError> {
+    let _ = no_refine;
     if let Some(r) = args.load_ohms
         && !(r.is_finite() && r > 0.0)
     {
@@ -495,6 +498,25 @@ pub fn identify_command(
             report.rejections.len()
         );
     }
+    let quality = quality::assess(&report, data);
+    if !quality.passed() {
+        let sentence = quality::refusal(data, &quality);
+        if json {
+            // No "equations" at the top: a withheld model is not the answer. It is shown
+            // under "withheld_model", beside why.
+            let mut warnings = report.warnings.clone();
+            warnings.extend(quality.failures.iter().cloned());
+            report.quality = Some(quality);
+            crate::outln!(
+                "{{\"withheld\":true,\"reason\":{},\"withheld_model\":{},\"warnings\":{}}}",
+                serde_json::Value::from(sentence.as_str()),
+                report.json(),
+                serde_json::Value::from(warnings)
+            );
+        }
+        return Err(CliError::NoDynamics(sentence));
+    }
+    report.quality = Some(quality);
     if let Some(r) = args.load_ohms {
         report.harvester = Some(power::harvester(&report, data, r));
     }

@@ -74,6 +74,9 @@ pub struct SystemReport {
     /// The harvester in physical terms (`--load-ohms`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub harvester: Option<Harvester>,
+    /// What the quality gate measured ([`super::quality`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality: Option<super::quality::SystemQuality>,
     /// Warnings (the model is not refined, x integrated from v, …).
     pub warnings: Vec<String>,
     /// One sentence per rejected sample; not part of the JSON.
@@ -150,6 +153,7 @@ impl SystemReport {
             coupling_order: config.coupling_order,
             standard_errors: String::new(),
             harvester: None,
+            quality: None,
             warnings,
             rejections: Vec::new(),
         }
