@@ -140,7 +140,10 @@ impl<'a> StateEstimator<'a> {
         }
         let x = &r.x[a..b];
         let (xh, vh) = match &r.v {
-            Some(v) => (self.taps.apply(0, x, &[]), self.taps.apply(0, &v[a..b], &[])),
+            Some(v) => (
+                self.taps.apply(0, x, &[]),
+                self.taps.apply(0, &v[a..b], &[]),
+            ),
             None => (self.taps.apply(0, x, &[]), self.taps.apply(1, x, &[])),
         };
         let mut s = [xh, vh, 0.0, 0.0];
@@ -219,9 +222,16 @@ pub fn window_fits(
     let slots = (to - from) / length;
     let windows = slots.min(HORIZON_WINDOWS);
     let states = recorded_states(data);
-    let sds: Vec<f64> = states.iter().map(|(_, _, s)| mean_sd(&s[from..to]).1).collect();
+    let sds: Vec<f64> = states
+        .iter()
+        .map(|(_, _, s)| mean_sd(&s[from..to]).1)
+        .collect();
     let u = r.u.as_deref().unwrap_or(&[]);
-    let bound = 10.0 * states.iter().map(|(_, _, s)| mean_sd(s).1).fold(0.0, f64::max);
+    let bound = 10.0
+        * states
+            .iter()
+            .map(|(_, _, s)| mean_sd(s).1)
+            .fold(0.0, f64::max);
     let mut each: Vec<Vec<f64>> = vec![Vec::new(); states.len()];
     for w in 0..windows {
         let a = from + (w * slots / windows) * length;
@@ -229,7 +239,12 @@ pub fn window_fits(
         let Some(start) = estimator.at(a) else {
             continue;
         };
-        let run = sim.run(&r.t[a..b], if u.is_empty() { u } else { &u[a..b] }, start, bound);
+        let run = sim.run(
+            &r.t[a..b],
+            if u.is_empty() { u } else { &u[a..b] },
+            start,
+            bound,
+        );
         for (k, (j, _, s)) in states.iter().enumerate() {
             let e: f64 = run
                 .iter()
@@ -341,7 +356,11 @@ pub fn condition(columns: &mut [Vec<f64>]) -> Option<(f64, Vec<usize>)> {
 }
 
 /// Each equation's collinearity (see the module's documentation).
-pub fn conditioning(sim: &SystemSim, report: &SystemReport, data: &SystemData) -> Vec<Conditioning> {
+pub fn conditioning(
+    sim: &SystemSim,
+    report: &SystemReport,
+    data: &SystemData,
+) -> Vec<Conditioning> {
     let r = &data.recording;
     let n = r.len().min(1 << 16);
     let empty = |target: &str| Conditioning {
@@ -383,7 +402,11 @@ pub fn conditioning(sim: &SystemSim, report: &SystemReport, data: &SystemData) -
         .iter()
         .zip(&targets)
         .map(|(eq, target)| {
-            let terms: Vec<SimTerm> = eq.iter().filter(|(_, c)| *c != 0.0).map(|(t, _)| *t).collect();
+            let terms: Vec<SimTerm> = eq
+                .iter()
+                .filter(|(_, c)| *c != 0.0)
+                .map(|(t, _)| *t)
+                .collect();
             if terms.len() < 2 {
                 return empty(target);
             }
