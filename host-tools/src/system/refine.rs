@@ -18,8 +18,9 @@
 //!   second half by the measure refinement minimises ([`held_out_percent`]: the simulation
 //!   error over segments of eight periods, each from its own fitted initial state; of two
 //!   when the streaming model's is over [`CHAOTIC_PERCENT`], a chaotic record):
-//!   the refined model is taken unless it predicts worse (by more than 0.5 %), and then
-//!   refined once more on the whole record from there.
+//!   the refined model is taken unless it predicts worse (by more than [`NOT_WORSE`]; or
+//!   when its free run from the first row stays bounded where the streaming model's
+//!   diverges), and then refined once more on the whole record from there.
 //! - **Standard errors** σ² [S⁻¹]ⱼⱼ, with S the Schur complement of the undamped normal
 //!   matrix (the coefficients' marginal, every segment's state estimated too) and σ² the
 //!   weighted residual variance per degree of freedom.
@@ -567,7 +568,14 @@ pub fn refine_and_check(
         .as_ref()
         .and_then(|f| held_out_percent(&f.sim, data, omega, dt, periods))
         .unwrap_or(f64::INFINITY);
-    let taken = refined_score <= streaming_score * (1.0 + NOT_WORSE);
+    // A streaming model whose free run
+    // from the first row diverges, where the refined one's does not, is worse whatever its
+    // held-out error over segments (their fitted states hide an unstable mode).
+    let rescued = first.as_ref().is_some_and(|f| {
+        super::quality::free_run_bounded(sim, data) == Some(false)
+            && super::quality::free_run_bounded(&f.sim, data) == Some(true)
+    });
+    let taken = refined_score <= streaming_score * (1.0 + NOT_WORSE) || rescued;
     let whole = if taken {
         first
             .as_ref()
