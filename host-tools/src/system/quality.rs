@@ -193,8 +193,9 @@ pub fn horizon_samples(sim: &SystemSim, data: &SystemData, omega: f64, dt: f64) 
         .map(|w| std::f64::consts::TAU / w / dt);
     // A measured excitation's own period too: a chaotic double well's strongest line is its
     // slow hopping between the wells, over which no model follows it.
-    let input = (sim.uses_input())
-        .then(|| data.recording.u.as_deref())
+    let input = sim
+        .uses_input()
+        .then_some(data.recording.u.as_deref())
         .flatten()
         .and_then(crate::identify::refine::mean_period_samples);
     let horizon = [forcing, input]

@@ -102,6 +102,9 @@ impl Noise {
     }
 }
 
+/// A broken recording: its label, its V at each row, and the check that withholds it.
+type Case<'a> = (&'a str, Box<dyn Fn(usize) -> f64 + 'a>, &'a str);
+
 #[test]
 fn broken_voltage_channels_are_withheld() {
     let dir = tempfile::tempdir().unwrap();
@@ -128,7 +131,7 @@ fn broken_voltage_channels_are_withheld() {
     let ko = other_header.iter().position(|h| h == "V").unwrap();
     let rms = (rows.iter().map(|r| r[k] * r[k]).sum::<f64>() / rows.len() as f64).sqrt();
     let mut noise = Noise(0x9E37_79B9_7F4A_7C15);
-    let cases: [(&str, Box<dyn Fn(usize) -> f64>, &str); 3] = [
+    let cases: [Case<'_>; 3] = [
         ("noise", Box::new(|_| 0.0), "cannot follow the recorded V"),
         (
             "unrelated",
