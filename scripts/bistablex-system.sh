@@ -8,7 +8,7 @@
 # records: within 10 %), met or not: for the streaming system (--no-refine) and the refined
 # one (the default), a withheld model's prediction shown beside the gate's reason.
 #
-#   scripts/bistablex-system.sh [DATA_DIR] [extra `lssi identify` flags]
+#   [PLOT_DIR=DIR] scripts/bistablex-system.sh [DATA_DIR] [extra `lssi identify` flags]
 #
 # Channels (README.txt of the data): u = base_acc_g · 9.81 m/s²; v = the vibrometer's
 # velocity X3/10 m/s minus the base's (the base acceleration integrated), each with its drift
@@ -114,4 +114,11 @@ for e in j["equations"]:
     esac
     printf '%-22s %-9s %-9s %-14s %-14s %-8s %s\n' "$name" "$model" "$nrmse" "$measured" "$predicted" "$perr" "$goal"
   done
+  # PLOT_DIR=DIR: the refined model's figures of the first half (voltage, power against
+  # load and frequency), by `lssi plot`.
+  if [ -n "${PLOT_DIR:-}" ]; then
+    "$LSSI" plot "$TMP/$name-first.csv" --f64 --load-ohms 1e6 "${FLAGS[@]}" --out "$PLOT_DIR" \
+      ${EXTRA[@]+"${EXTRA[@]}"} > /dev/null 2> "$TMP/$name.err" \
+      || printf '%-22s plot: %s\n' "$name" "$(tail -1 "$TMP/$name.err" | cut -c1-200)"
+  fi
 done
