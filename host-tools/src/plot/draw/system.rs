@@ -181,7 +181,7 @@ impl Figure for PowerFrequency<'_> {
                 .label(format!("the recording's forcing, {f:.3} Hz"))
                 .legend(line_legend(RECORDING, 2));
         }
-        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+        legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
         Ok(())
     }
 }
