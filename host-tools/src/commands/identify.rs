@@ -207,7 +207,13 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     if args.more.is_empty() && !args.track && !args.csv && args.quantise.is_none() {
         match crate::system::read_if_system(input.file(), &args.columns, &args.system.columns)? {
             Some(data) => {
-                return crate::system::identify_command(&data, &options, &args.system, args.json);
+                return crate::system::identify_command(
+                    &data,
+                    &options,
+                    &args.system,
+                    args.json,
+                    args.no_refine,
+                );
             }
             None => crate::system::refuse_stray_flags(&args.file, &args.system)?,
         }

@@ -150,6 +150,13 @@ fn plot_one(args: &PlotArgs, options: &Options, file: &Path) -> Result<(), CliEr
     if let Some(problem) = batch::folder_problem(file) {
         return Err(CliError::Input(problem));
     }
+    // A harvester's recording (an electrical channel): its own figures.
+    if let Some(data) =
+        crate::system::read_if_system(file, &args.identify.columns, &args.identify.system.columns)?
+    {
+        return plot_system(args, options, &data);
+    }
+    crate::system::refuse_stray_flags(file, &args.identify.system)?;
     let recording = Recording::read(file, &args.identify.columns)?;
     // The model `lssi identify` prints, through the same pipeline (refined unless
     // --no-refine); a model the quality gate withholds is not drawn.
@@ -220,6 +227,58 @@ fn plot_one(args: &PlotArgs, options: &Options, file: &Path) -> Result<(), CliEr
                 source: std::io::Error::other(reason),
             })
         }
+        Some(other) => Err(CliError::Input(other.to_string())),
+    }
+}
+
+/// Plots a harvester's recording (issue 26): the model `lssi identify` prints for it, drawn by
+/// [`crate::plot::plot_system`]; a withheld model is not drawn.
+fn plot_system(
+    args: &PlotArgs,
+    options: &Options,
+    data: &crate::system::SystemData,
+) -> Result<(), CliError> {
+    use crate::system::{Outcome, identify_system};
+    let file = &data.recording.path;
+    let report = match identify_system(
+        data,
+        options,
+        &args.identify.system,
+        args.identify.no_refine,
+    )? {
+        Outcome::Passed(report) => report,
+        Outcome::Withheld(sentence, _) => {
+            return Err(CliError::NoDynamics(format!(
+                "{sentence} No figure of it was drawn."
+            )));
+        }
+    };
+    let figures = crate::plot::plot_system(data, &report, &args.out)?;
+    for note in &figures.skipped {
+        eprintln!("lssi: {}: figure skipped: {note}", file.display());
+    }
+    if args.identify.json {
+        let failed: Vec<String> = figures.failed.iter().map(ToString::to_string).collect();
+        let object = serde_json::json!({
+            "file": file,
+            "figures": figures.written,
+            "skipped": figures.skipped,
+            "failed": failed,
+            "report": report,
+        });
+        crate::outln!("{object}");
+    } else {
+        for w in &figures.written {
+            crate::outln!("{}", w.png.display());
+            crate::outln!("{}", w.svg.display());
+        }
+    }
+    match figures.failed.first() {
+        None => Ok(()),
+        Some(PlotError::Write { path, reason }) => Err(CliError::Write {
+            path: path.clone(),
+            source: std::io::Error::other(reason.clone()),
+        }),
         Some(other) => Err(CliError::Input(other.to_string())),
     }
 }

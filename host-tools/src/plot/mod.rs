@@ -10,6 +10,12 @@
 //! | `coefficients` | each selected term's coefficient as identified from the record up to time t (the streaming view) | — |
 //! | `phase` | the phase portrait (x, v) with the unforced model's equilibria; for a double well the wells and the saddle | — |
 //!
+//! A harvester's recording (an electrical channel: [`crate::system`]) gets its own figures
+//! ([`plot_system`]): `voltage` (or `current`), the measured channel against the identified
+//! system's free run from the excitation alone, and with `--load-ohms` `power-load` (the
+//! predicted mean power against the load, the measured power and the optimal load) and
+//! `power-frequency` (against the forcing frequency).
+//!
 //! Text is drawn with DejaVu Sans, shipped in `assets/fonts` and embedded in the binary, so
 //! the PNGs look the same on any machine and nothing depends on the system's fonts.
 
@@ -110,5 +116,76 @@ pub fn plot_all(
         "phase",
         draw::phase(&base, recording, &velocity, report, units),
     );
+    Ok(figures)
+}
+
+/// Draws a harvester's figures (see the module's documentation) into `dir`: the measured
+/// electrical channel against the free run of `report`'s system, and with its
+/// `harvester` (`--load-ohms`) the power against load and frequency.
+pub fn plot_system(
+    data: &crate::system::SystemData,
+    report: &crate::system::SystemReport,
+    dir: &Path,
+) -> Result<Figures, CliError> {
+    use crate::system::simulate::{SystemSim, first_state, nrmse};
+    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    draw::register_font().map_err(|e| CliError::Identify(e.to_string()))?;
+    let r = &data.recording;
+    let stem = r
+        .path
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    let base = dir.join(&stem);
+    let mut figures = Figures::default();
+    let mut emit = |name: &str, result: Result<Written, PlotError>| match result {
+        Ok(w) => figures.written.push(w),
+        Err(e @ PlotError::Write { .. }) => figures.failed.push(e),
+        Err(PlotError::Skipped(why)) => figures.skipped.push(format!("{name}: {why}")),
+        Err(e) => figures.skipped.push(format!("{name}: {e}")),
+    };
+    match SystemSim::of_report(report) {
+        Some(sim) => {
+            let u = r.u.as_deref().unwrap_or(&[]);
+            let scale = r.x.iter().fold(0.0f64, |m, q| m.max(q.abs()));
+            let run = sim.run(&r.t, u, first_state(data), scale + 1.0);
+            for (k, e) in data.electrical.iter().enumerate().take(2) {
+                let predicted: Vec<f64> = run.iter().map(|s| s[2 + k]).collect();
+                let error = 100.0 * nrmse(&predicted, &e.values);
+                let name = if e.kind.symbol() == "V" {
+                    "voltage"
+                } else {
+                    "current"
+                };
+                emit(
+                    name,
+                    draw::voltage(&base, &r.t, &e.values, &predicted, e.kind.symbol(), error),
+                );
+            }
+        }
+        None => emit(
+            "voltage",
+            Err(PlotError::Skipped(
+                "the model has a term the simulator does not know.".into(),
+            )),
+        ),
+    }
+    match &report.harvester {
+        Some(h) => {
+            emit("power-load", draw::power_load(&base, h));
+            emit(
+                "power-frequency",
+                draw::power_frequency(&base, h, report.omega),
+            );
+        }
+        None => emit(
+            "power-load, power-frequency",
+            Err(PlotError::Skipped(
+                "give the load the voltage was recorded across (--load-ohms R).".into(),
+            )),
+        ),
+    }
     Ok(figures)
 }

@@ -18,6 +18,8 @@
 //! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
 
 pub mod power;
+pub mod quality;
+pub mod refine;
 pub mod report;
 pub mod simulate;
 
@@ -461,14 +463,25 @@ pub fn refuse_stray_flags(file: &Path, args: &SystemArgs) -> Result<(), CliError
     }
 }
 
-/// `lssi identify FILE` for a recording with an electrical channel: the system's model, as
-/// text or `--json`.
-pub fn identify_command(
+/// What [`identify_system`] found: the model, or the model the quality gate withheld with
+/// the sentence saying why.
+pub enum Outcome {
+    /// The model passed the gate.
+    Passed(Box<SystemReport>),
+    /// The model failed it: the refusal ("no deterministic dynamics found in …") and the
+    /// model, with the gate's measures.
+    Withheld(String, Box<SystemReport>),
+}
+
+/// Identifies a system's recording: the streaming identifier, refinement (unless
+/// `no_refine`), the quality gate and, for a model that passes, the harvester's analysis
+/// (`--load-ohms`). Each rejected sample is named on stderr (the first few).
+pub fn identify_system(
     data: &SystemData,
     options: &Options,
     args: &SystemArgs,
-    json: bool,
-) -> Result<(), CliError> {
+    no_refine: bool,
+) -> Result<Outcome, CliError> {
     if let Some(r) = args.load_ohms
         && !(r.is_finite() && r > 0.0)
     {
@@ -495,9 +508,50 @@ pub fn identify_command(
             report.rejections.len()
         );
     }
+    if !no_refine {
+        refine_report(&mut report, data);
+    }
+    let quality = quality::assess(&report, data);
+    report.warnings.extend(quality.warnings.iter().cloned());
+    if !quality.passed() {
+        let sentence = quality::refusal(data, &quality);
+        report.warnings.extend(quality.failures.iter().cloned());
+        report.quality = Some(quality);
+        return Ok(Outcome::Withheld(sentence, Box::new(report)));
+    }
+    report.quality = Some(quality);
     if let Some(r) = args.load_ohms {
         report.harvester = Some(power::harvester(&report, data, r));
     }
+    Ok(Outcome::Passed(Box::new(report)))
+}
+
+/// `lssi identify FILE` for a recording with an electrical channel: the system's model, as
+/// text or `--json`; a withheld one is exit status 3 with the sentence saying why (`--json`:
+/// `{"withheld": true, "reason": …, "withheld_model": …, "warnings": …}`).
+pub fn identify_command(
+    data: &SystemData,
+    options: &Options,
+    args: &SystemArgs,
+    json: bool,
+    no_refine: bool,
+) -> Result<(), CliError> {
+    let report = match identify_system(data, options, args, no_refine)? {
+        Outcome::Passed(report) => report,
+        Outcome::Withheld(sentence, report) => {
+            if json {
+                // No "equations" at the top: a withheld model is not the answer. It is shown
+                // under "withheld_model", beside why.
+                crate::outln!(
+                    "{{\"withheld\":true,\"reason\":{},\"withheld_model\":{},\"warnings\":{}}}",
+                    serde_json::Value::from(sentence.as_str()),
+                    report.json(),
+                    serde_json::Value::from(report.warnings.clone())
+                );
+            }
+            return Err(CliError::NoDynamics(sentence));
+        }
+    };
     if json {
         crate::outln!("{}", report.json());
     } else {
@@ -507,4 +561,47 @@ pub fn identify_command(
         crate::out!("{}", report.render());
     }
     Ok(())
+}
+
+/// Refines the report's model on simulation error ([`refine::refine_and_check`]) and says
+/// what was done.
+pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
+    let Some(sim) = simulate::SystemSim::of_report(report) else {
+        report.note = "not refined: the model has a term the simulator does not know; this is the streaming system identifier's model".into();
+        return;
+    };
+    match refine::refine_and_check(&sim, data, report.omega, report.sample_period) {
+        Some((Some(refined), info)) => {
+            report.take_refined(&refined);
+            report.note = format!(
+                "refined on simulation error (x{} and {} together, every equation's coefficients): refined on the first half, it predicts the second half with an NRMSE of {:.2} % against the streaming model's {:.2} % (segments of {} periods from fitted initial states, the excitation alone)",
+                if data.recording.v.is_some() {
+                    ", v"
+                } else {
+                    ""
+                },
+                data.electrical
+                    .iter()
+                    .map(|e| e.kind.symbol())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                info.held_out_refined_percent,
+                info.held_out_streaming_percent,
+                info.held_out_periods
+            );
+            report.refinement = Some(info);
+        }
+        Some((None, info)) => {
+            report.note = format!(
+                "not refined: refined on the first half, it predicted the second half no better (NRMSE {:.2} % against the streaming model's {:.2} %); this is the streaming system identifier's model",
+                info.held_out_refined_percent, info.held_out_streaming_percent
+            );
+            report.warnings.push(report.note.clone());
+            report.refinement = Some(info);
+        }
+        None => {
+            report.note = "not refined: the record is too short or a channel does not vary; this is the streaming system identifier's model".into();
+            report.warnings.push(report.note.clone());
+        }
+    }
 }

@@ -2,8 +2,9 @@
 //! standard errors, the solutions of each equation's sweep, and the `--json` object
 //! `{"equations": [{"target": "x''", "terms": [...]}, {"target": "V'", "terms": [...]}], …}`.
 //!
-//! The coefficients are the streaming system identifier's (what a device computes): systems
-//! are not refined on simulation error yet. Their standard errors come from a least-squares
+//! The coefficients are refined on simulation error ([`super::refine`]), or with
+//! `--no-refine` the streaming system identifier's (what a device computes), whose standard
+//! errors come from a least-squares
 //! fit, on the host, of each equation's selected terms on regression rows a derivative window
 //! apart (Savitzky–Golay estimates of the states and targets over disjoint windows, so that
 //! the rows' estimation errors are nearly independent): σ² (AᵀA)⁻¹ with σ² the residual
@@ -19,9 +20,9 @@ use super::power::Harvester;
 use super::simulate::SimTerm;
 use crate::identify::{SolutionReport, TermReport};
 
-/// The warning every system report carries until systems are refined.
+/// What a report of the streaming model (`--no-refine`) says of it.
 pub const NOT_REFINED: &str =
-    "not refined (systems are not refined yet): this is the streaming system identifier's model";
+    "not refined (--no-refine): this is the streaming system identifier's model";
 
 /// One equation of the report.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -42,8 +43,14 @@ pub struct EquationReport {
 pub struct SystemReport {
     /// x'' first, then each electrical channel's equation.
     pub equations: Vec<EquationReport>,
-    /// Always `"streaming"` (systems are not refined yet).
+    /// `"refined"` (on simulation error, [`super::refine`]) or `"streaming"`.
     pub model: String,
+    /// What refinement did (absent with `--no-refine`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<super::refine::Refinement>,
+    /// What the text report says of the model after "model: ".
+    #[serde(skip)]
+    pub note: String,
     /// The states, in the library's order: `x`, `v`, then the electrical ones.
     pub states: Vec<String>,
     /// How x was obtained when the file has only v (else absent).
@@ -74,6 +81,9 @@ pub struct SystemReport {
     /// The harvester in physical terms (`--load-ohms`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub harvester: Option<Harvester>,
+    /// What the quality gate measured ([`super::quality`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality: Option<super::quality::SystemQuality>,
     /// Warnings (the model is not refined, x integrated from v, …).
     pub warnings: Vec<String>,
     /// One sentence per rejected sample; not part of the JSON.
@@ -130,12 +140,13 @@ impl SystemReport {
             .collect();
         let mut states = vec!["x".to_owned(), "v".to_owned()];
         states.extend(data.electrical.iter().map(|e| e.kind.symbol().to_owned()));
-        let mut warnings = vec![NOT_REFINED.to_owned()];
-        warnings.extend(data.x_from_v.iter().cloned());
+        let warnings: Vec<String> = data.x_from_v.iter().cloned().collect();
         let base = &config.base;
         Self {
             equations,
             model: "streaming".into(),
+            refinement: None,
+            note: NOT_REFINED.into(),
             states,
             x_from_v: data.x_from_v.clone(),
             omega,
@@ -150,6 +161,7 @@ impl SystemReport {
             coupling_order: config.coupling_order,
             standard_errors: String::new(),
             harvester: None,
+            quality: None,
             warnings,
             rejections: Vec::new(),
         }
@@ -167,7 +179,7 @@ impl SystemReport {
             out.push_str(&equation_text(e));
             out.push('\n');
         }
-        out.push_str(&format!("model: {NOT_REFINED}\n"));
+        out.push_str(&format!("model: {}\n", self.note));
         out.push_str(&format!("  ± {}\n", self.standard_errors));
         let mut inputs = Vec::new();
         if self
@@ -235,6 +247,28 @@ impl SystemReport {
             out.push_str(&h.render());
         }
         out
+    }
+}
+
+impl SystemReport {
+    /// Takes the refined model's coefficients and standard errors.
+    pub fn take_refined(&mut self, refined: &super::refine::Refined) {
+        for ((e, eq), se) in self
+            .equations
+            .iter_mut()
+            .zip(&refined.sim.equations)
+            .zip(&refined.standard_errors)
+        {
+            for ((t, (_, c)), s) in e.terms.iter_mut().zip(eq).zip(se) {
+                t.coef = *c;
+                t.se = s.is_finite().then_some(*s);
+            }
+        }
+        self.model = "refined".into();
+        self.standard_errors = format!(
+            "standard errors of the refinement: σ² [S⁻¹]ⱼⱼ, S the Schur complement of the normal matrix over the coefficients and {} segments' initial states, σ² the residual variance per degree of freedom (each state's error over its standard deviation); they do not cover the selection",
+            refined.segments
+        );
     }
 }
 

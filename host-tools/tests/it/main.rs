@@ -29,6 +29,7 @@ mod stream;
 mod stream_gate;
 mod sweep;
 mod system;
+mod system_gate;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;

@@ -6,6 +6,7 @@ mod model;
 mod neighbours;
 mod phase;
 mod screening;
+mod system;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -263,6 +264,7 @@ pub(super) use model::model;
 pub(super) use neighbours::neighbours;
 pub(super) use phase::phase;
 pub(super) use screening::screening;
+pub(super) use system::{power_frequency, power_load, voltage};
 
 #[cfg(test)]
 mod tests {
