@@ -367,27 +367,12 @@ fn rows(data: &SystemData, len: usize, degree: usize, dt: f64) -> Option<Vec<Row
 /// Fills in each term's standard error (see the module's documentation), and the sentence
 /// saying how, or why there are none.
 pub fn add_standard_errors(report: &mut SystemReport, data: &SystemData) {
-    let r = &data.recording;
-    let (source, order) = match &r.v {
-        Some(v) => (v.clone(), 1),
-        None => (r.x.clone(), 2),
-    };
-    let source: Vec<f64> = source.into_iter().filter(|q| q.is_finite()).collect();
-    let dt = report.sample_period;
-    let choice = lssi_core::tuning::choose_window::<f64, { super::WINDOW_CAPACITY }>(
-        &source,
-        order,
-        dt,
-        source.len(),
-    );
-    let Some(choice) = choice else {
-        report.standard_errors =
-            "no standard errors: too few samples for a derivative window".into();
-        return;
-    };
-    let Some(rows) = rows(data, choice.window, usize::from(choice.degree), dt) else {
-        report.standard_errors = "no standard errors: no derivative window fits".into();
-        return;
+    let (rows, choice) = match regression_rows(report.sample_period, data) {
+        Ok(found) => found,
+        Err(why) => {
+            report.standard_errors = why.into();
+            return;
+        }
     };
     let electrical: Vec<_> = data.electrical.iter().map(|e| e.kind).collect();
     let mut all = true;
@@ -433,9 +418,61 @@ pub fn add_standard_errors(report: &mut SystemReport, data: &SystemData) {
     );
 }
 
+/// The regression rows of the standard errors: the estimates over disjoint derivative
+/// windows, and the window chosen; or the sentence saying why there are none.
+fn regression_rows(
+    dt: f64,
+    data: &SystemData,
+) -> Result<(Vec<Row>, lssi_core::tuning::WindowChoice), &'static str> {
+    let r = &data.recording;
+    let (source, order) = match &r.v {
+        Some(v) => (v.clone(), 1),
+        None => (r.x.clone(), 2),
+    };
+    let source: Vec<f64> = source.into_iter().filter(|q| q.is_finite()).collect();
+    let choice = lssi_core::tuning::choose_window::<f64, { super::WINDOW_CAPACITY }>(
+        &source,
+        order,
+        dt,
+        source.len(),
+    )
+    .ok_or("no standard errors: too few samples for a derivative window")?;
+    let rows = rows(data, choice.window, usize::from(choice.degree), dt)
+        .ok_or("no standard errors: no derivative window fits")?;
+    Ok((rows, choice))
+}
+
+/// The least-squares fit of equation `k`'s target on `terms` over the standard errors' rows:
+/// each coefficient and its standard error; `None` with too few rows or collinear terms.
+pub fn refit(
+    dt: f64,
+    data: &SystemData,
+    k: usize,
+    terms: &[SimTerm],
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let (rows, _) = regression_rows(dt, data).ok()?;
+    let a: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|row| {
+            terms
+                .iter()
+                .map(|t| t.eval(&row.states, row.t, row.u))
+                .collect()
+        })
+        .collect();
+    let y: Vec<f64> = rows.iter().map(|row| row.targets[k]).collect();
+    least_squares(&a, &y)
+}
+
 /// The standard errors of the least-squares coefficients of `y ≈ A β`: σ² (AᵀA)⁻¹ with σ² =
 /// RSS / (n − p); `None` with too few rows or a singular AᵀA.
 pub fn least_squares_se(a: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
+    least_squares(a, y).map(|(_, se)| se)
+}
+
+/// The least-squares coefficients β of `y ≈ A β` and their standard errors (see
+/// [`least_squares_se`]).
+pub fn least_squares(a: &[Vec<f64>], y: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
     let n = a.len();
     let p = a.first().map_or(0, Vec::len);
     if p == 0 || n <= p + 2 {
@@ -472,11 +509,12 @@ pub fn least_squares_se(a: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
         })
         .sum();
     let sigma2 = rss / (n - p) as f64;
-    Some(
+    Some((
+        (0..p).map(|j| beta[j] / scale[j]).collect(),
         (0..p)
             .map(|j| (sigma2 * inv[j][j]).max(0.0).sqrt() / scale[j])
             .collect(),
-    )
+    ))
 }
 
 /// The inverse of a symmetric positive definite matrix by Gauss–Jordan with partial
