@@ -211,9 +211,9 @@ fn harmonic_and_strong_forcing_give_the_truth_or_are_withheld() {
 
 /// Still wrong (issue 25): a single well driven hard (F = 3) at 2 % noise keeps an x·v² of
 /// 6–7 of its refined standard errors on seeds 62 and 63 (3195 ± 477), and takes x·v and v³
-/// for the damping v on seed 67; seeds 51, 52, 64–66 and 68 give the truth. On a nearly
-/// harmonic orbit x·v² is close to a combination of x and x³, which the gate's collinearity
-/// check (at most 300) does not catch.
+/// for the damping v on seed 67; seeds 51, 52, 64–66 and 68 give the truth. The columns are
+/// not collinear (condition about 9 with x·v²), so neither backward elimination nor the
+/// gate's collinearity check removes it.
 #[test]
 #[ignore = "issue 25: spurious x*v^2 / x*v + v^3 at F=3, 2 % noise on some seeds"]
 fn a_hard_driven_single_well_at_two_percent_noise() {
