@@ -91,6 +91,16 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             None
         }
     };
+    // The model printed (refined or not) must be able to do what the record does: one
+    // without damping cannot die out (refinement can bring a damping the streaming selection
+    // lost back, so this is judged after it).
+    if let Some(why) = quality::undamped_decay(recording, &report) {
+        let sentence = format!(
+            "no deterministic dynamics found in {}: {why}.",
+            recording.path.display()
+        );
+        return Err(Failure::Withheld(sentence, vec![why], Box::new(report)));
+    }
     Ok(Identified {
         report,
         refined,

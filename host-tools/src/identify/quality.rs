@@ -19,6 +19,9 @@
 //!    (NRMSE at most [`MAX_SHORT_HORIZON_NRMSE`] %): a model that cannot is not explaining it.
 //! 7. **Terms not collinear**: the chosen terms' columns on the (low-passed) recording must
 //!    be well conditioned ([`MAX_CONDITION`]).
+//! 8. **A decay the model can follow**: x dying out while the model printed has no damping and
+//!    no forcing ([`undamped_decay`]; judged in [`crate::identify::pipeline`] after refinement,
+//!    which can bring back a damping the streaming selection lost).
 
 use crate::identify::blemish::{CleanWindows, Scan};
 use crate::identify::{Report, WINDOW_CAPACITY};
@@ -477,6 +480,48 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
         })
         .collect();
     Some(((hi / lo).sqrt(), names))
+}
+
+/// How much less x must oscillate over its last quarter than over its first for
+/// [`undamped_decay`] (the mirror of [`crate::identify::sweep::GROWS`]).
+pub const DECAYS: f64 = 1.25;
+
+/// Whether x's oscillation dies out over the record while the model, without forcing, has
+/// no term in v: x'' = f(x) keeps its energy and cannot decay, so its damping was lost (at
+/// high noise over a short ringdown the streaming selection drops a weak damping and the
+/// model follows the record over a few periods all the same). The sentence, or `None`.
+pub fn undamped_decay(recording: &Recording, report: &Report) -> Option<String> {
+    use lssi_core::Term;
+    let active = || {
+        report
+            .model
+            .iter()
+            .filter(|(_, c)| *c != 0.0)
+            .map(|(t, _)| *t)
+    };
+    let driven = active().any(|t| matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input));
+    let damped = active().any(|t| matches!(t, Term::Monomial { pv, .. } if pv > 0));
+    if driven || damped || active().next().is_none() {
+        return None;
+    }
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let x = &recording.x[stretch];
+    let quarter = x.len() / 4;
+    if quarter < 16 {
+        return None;
+    }
+    let rms = |s: &[f64]| {
+        let mean = s.iter().sum::<f64>() / s.len() as f64;
+        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    let (first, last) = (rms(&x[..quarter]), rms(&x[x.len() - quarter..]));
+    (last * DECAYS < first).then(|| {
+        format!(
+            "x's oscillation dies out over the record (its RMS over the last quarter is {:.0} % of the first's) but the model has no term in v, no damping, and without forcing cannot lose energy: the damping is not resolved at this noise and length (a longer record, or less noise)",
+            100.0 * last / first
+        )
+    })
 }
 
 /// Runs the checks on `report` (made from `recording` with `config`); `other` is the same

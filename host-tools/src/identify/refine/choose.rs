@@ -187,7 +187,12 @@ struct Trial {
     support: Vec<Term>,
     refined: Option<Refined>,
     windows: Option<Windows>,
+    /// The trial it is by backward elimination (one insignificant term fewer).
+    parent: Option<usize>,
 }
+
+/// Terms backward elimination drops at most ([`refine_and_check_among`]).
+pub const PRUNE_ROUNDS: usize = 4;
 
 /// Refines the streaming model's support and each of `candidates`' on the first half (each
 /// from its least-squares start) and predicts the second half over short windows, each from
@@ -219,7 +224,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             starts.push((support.clone(), start));
         }
     }
-    let trials: Vec<Trial> = starts
+    let mut trials: Vec<Trial> = starts
         .into_iter()
         .map(|(support, start)| {
             let refined = start
@@ -232,9 +237,107 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 support,
                 refined,
                 windows,
+                parent: None,
             }
         })
         .collect();
+    // Backward elimination from the streaming support refined: its least significant term,
+    // when under SIGNIFICANT_SE of its standard errors, dropped and the rest refined again
+    // (from their refined coefficients), and so on. The streaming selection keeps a spurious
+    // term of the equation error at a few percent of noise (a constant, v², x·v² beside the
+    // harvester's damping at 2 %: each within one or two of its refined standard errors) that
+    // no other support of the sweep leaves out; one at a time, as a term collinear with
+    // another (v and x²·v) is insignificant only beside it.
+    // And the same from the model recentred on its restoring force's centre of symmetry
+    // ([`recentred`]), when it has one off the origin the identifier chose.
+    let mut roots = vec![0];
+    if predictable && let Some(start) = recentred(model, data.x) {
+        let refined = refine(&start, &train, &on_half);
+        let windows = refined
+            .as_ref()
+            .and_then(|r| window_errors(&r.model, &held, length));
+        trials.push(Trial {
+            support: start.terms.iter().map(|(t, _)| *t).collect(),
+            refined,
+            windows,
+            parent: Some(0),
+        });
+        roots.push(trials.len() - 1);
+    }
+    for root in roots.into_iter().filter(|_| predictable) {
+        let mut base = root;
+        for _ in 0..PRUNE_ROUNDS {
+            let Some(r) = trials[base].refined.as_ref() else {
+                break;
+            };
+            let least = r
+                .model
+                .terms
+                .iter()
+                .zip(&r.standard_errors)
+                .filter(|((_, c), se)| *c != 0.0 && se.is_finite() && **se > 0.0)
+                .map(|((t, c), se)| (*t, c.abs() / se))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let Some((drop, z)) = least.filter(|(_, z)| *z < SIGNIFICANT_SE) else {
+                break;
+            };
+            if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+                eprintln!("lssi: refine: dropping {drop:?} at {z:.2} standard errors");
+            }
+            let support: Vec<Term> = trials[base]
+                .support
+                .iter()
+                .filter(|t| **t != drop)
+                .copied()
+                .collect();
+            let origin = r.model.offsets;
+            if support.is_empty()
+                || trials.iter().any(|t| {
+                    t.support == support
+                        && t.refined
+                            .as_ref()
+                            .is_some_and(|r| r.model.offsets == origin)
+                })
+            {
+                break;
+            }
+            let start = SimModel {
+                terms: r
+                    .model
+                    .terms
+                    .iter()
+                    .filter(|(t, _)| *t != drop)
+                    .copied()
+                    .collect(),
+                ..r.model.clone()
+            };
+            let refined = refine(&start, &train, &on_half);
+            let windows = refined
+                .as_ref()
+                .and_then(|r| window_errors(&r.model, &held, length));
+            trials.push(Trial {
+                support,
+                refined,
+                windows,
+                parent: Some(base),
+            });
+            base = trials.len() - 1;
+        }
+    }
+    let trials = trials;
+    if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+        for t in &trials {
+            eprintln!(
+                "lssi: refine: support {:?}: refined {}, windows {:?}",
+                t.support,
+                t.refined.as_ref().map_or("no".to_owned(), |r| format!(
+                    "{:?} se {:?}",
+                    r.model.terms, r.standard_errors
+                )),
+                t.windows.as_ref().map(Windows::nrmse_percent)
+            );
+        }
+    }
     let against_streaming: Vec<Option<Paired>> = trials
         .iter()
         .map(|t| Paired::of(streaming_windows.as_ref()?, t.windows.as_ref()?))
@@ -313,11 +416,28 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                     (Some(w0), Some(wi)) => Paired::of(w0, wi).is_some_and(|q| q.z >= Z_BETTER),
                     _ => true,
                 };
+            // A term dropped by backward elimination was insignificant where it was
+            // dropped: the sparser model is taken unless it predicts worse than the one it
+            // came from (by NOT_WORSE_Z) or than the streaming model.
+            // (or by the parsimony margin: a tie of RMS errors is no reason for more terms).
+            let not_worse = |wj: Option<&Windows>| match (wj, &trials[i].windows) {
+                (Some(wj), Some(wi)) => {
+                    Paired::of(wj, wi).is_some_and(|q| q.z >= -NOT_WORSE_Z)
+                        || wi.rms() <= wj.rms() * (1.0 + SUPPORT_PARSIMONY)
+                }
+                _ => false,
+            };
+            let pruned = trials[i].parent.is_some_and(|parent| {
+                not_worse(trials[parent].windows.as_ref())
+                    && not_worse(trials[0].windows.as_ref())
+                    && not_worse(streaming_windows.as_ref())
+            });
             adds_significant(&trials[i])
                 && beats_its_base
                 && (p.z >= Z_BETTER
                     || (resolved && p.z >= -NOT_WORSE_Z)
-                    || (sparser && p.gain >= 0.0 && drops_insignificant(&trials[i])))
+                    || (sparser && p.gain >= 0.0 && drops_insignificant(&trials[i]))
+                    || pruned)
         })
         .collect();
     let error = |i: usize| {
@@ -423,14 +543,28 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                     Some(w) => format!("{:.3} %", w.nrmse_percent()),
                     None => "no fit".to_owned(),
                 };
+                let picked = &trials[pick.unwrap_or(0)];
+                let origin = picked
+                    .refined
+                    .as_ref()
+                    .map_or(model.offsets[0], |r| r.model.offsets[0]);
+                let how = if origin != model.offsets[0] {
+                    format!(
+                        "recentred on its restoring force's centre of symmetry (x = {origin:.4e}), then terms insignificant in the refinement dropped"
+                    )
+                } else if picked.parent.is_some() {
+                    "terms insignificant in the refinement dropped one at a time".to_owned()
+                } else {
+                    "another support of the sweep".to_owned()
+                };
                 text.push_str(&format!(
-                    ", on another support of the sweep ({}; the streaming support refined: {on_streaming})",
+                    ", on {how} ({}; the streaming support refined: {on_streaming})",
                     describe_change(&support_change, model.omega)
                 ));
             }
             if others > 0 {
                 text.push_str(&format!(
-                    "; {others} other support{} of the sweep tried",
+                    "; {others} other support{} tried",
                     if others == 1 { "" } else { "s" }
                 ));
             }
@@ -524,6 +658,52 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         supports,
         support_change,
     }
+}
+
+/// The model with its origin moved to the centre of symmetry of its restoring force, the
+/// inflection point of a cubic a·x + b·x² + c·x³ (x shifted by −b/(3c), where its x² term
+/// vanishes), with no x² and no constant: a symmetric double well's model about the middle.
+/// The identifier places the origin at an equilibrium, which for a double well can be a well
+/// (then the same restoring force takes an x² term and moves the wells' midpoint off 0; a
+/// slight miss of the well takes spurious terms too). `None` without x² and x³ terms, or
+/// when the centre lies outside the recorded range of x (an asymmetric force's x², not a
+/// shifted origin). Other terms keep their coefficients as a start.
+pub fn recentred(model: &SimModel, x: &[f64]) -> Option<SimModel> {
+    let coef = |px: u8| {
+        model
+            .terms
+            .iter()
+            .find(|(t, c)| *t == Term::Monomial { px, pv: 0 } && *c != 0.0)
+            .map(|(_, c)| *c)
+    };
+    let (a, b, c) = (coef(1)?, coef(2)?, coef(3)?);
+    let shift = -b / (3.0 * c);
+    let (lo, hi) = x
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let centre = model.offsets[0] + shift;
+    if !(shift.is_finite() && centre >= lo && centre <= hi) {
+        return None;
+    }
+    let terms = model
+        .terms
+        .iter()
+        .filter(|(t, c)| {
+            *c != 0.0 && !matches!(t, Term::Constant | Term::Monomial { px: 2, pv: 0 })
+        })
+        .map(|&(t, k)| match t {
+            Term::Monomial { px: 1, pv: 0 } => (t, a + 2.0 * b * shift + 3.0 * c * shift * shift),
+            _ => (t, k),
+        })
+        .collect();
+    Some(SimModel {
+        terms,
+        omega: model.omega,
+        offsets: [centre, model.offsets[1]],
+    })
 }
 
 /// The total polynomial degree of a support's monomials.
@@ -646,11 +826,12 @@ pub fn refine_recording(
         x: &x,
         u: u.as_deref(),
     };
-    refine_and_check_among(
-        &SimModel::from_report(report),
-        &Candidates::of(report),
-        &data,
-    )
+    // The candidates' least-squares starts differentiate the samples kept: every s-th, at s
+    // times the period (at the recording's, every window looked like one across a time gap,
+    // and no support that adds a term, the lost damping of a ringdown at 5 kHz, was tried).
+    let mut candidates = Candidates::of(report);
+    candidates.sample_period *= stride.max(1) as f64;
+    refine_and_check_among(&SimModel::from_report(report), &candidates, &data)
 }
 
 impl crate::identify::Report {
@@ -679,6 +860,8 @@ impl crate::identify::Report {
             })
             .collect();
         self.reported = Chosen::Refined;
+        // A model recentred on its centre of symmetry has its own origin.
+        self.offsets = check.model.offsets;
         // The simulation model follows: what is printed is what is simulated and drawn.
         self.model = check
             .model

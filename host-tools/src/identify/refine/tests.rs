@@ -259,3 +259,53 @@ fn the_cubic_input_is_exact_on_a_cubic_and_passes_through_the_samples() {
     assert_eq!(data.input(4, 0.0), 16.0);
     assert!((data.input(4, 0.5) - 20.25).abs() < 1e-12);
 }
+
+#[test]
+fn spurious_terms_no_support_of_the_sweep_leaves_out_are_eliminated() {
+    // The streaming model keeps a constant and a v² beside the true terms, and the sweep
+    // offers no support without them: backward elimination drops both, one at a time.
+    let (t, x) = duffing(&truth(), 8000, 0.01, 0.05, 5);
+    let data = Data {
+        t: &t,
+        x: &x,
+        u: None,
+    };
+    let mut streaming = perturbed(0.03);
+    streaming.terms.insert(0, (Term::Constant, 0.003));
+    streaming
+        .terms
+        .insert(3, (Term::Monomial { px: 0, pv: 2 }, 0.002));
+    let check = refine_and_check_among(&streaming, &Candidates::none(), &data);
+    assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
+    assert_eq!(support(&check.model), support(&truth()), "{}", check.reason);
+    assert!(check.reason.contains("insignificant"), "{}", check.reason);
+}
+
+#[test]
+fn a_double_well_about_one_well_is_recentred() {
+    // x'' = x − x³ − 0.1 v + 0.3 cos(1.2 t) written about its well at x = 1 (y = x − 1):
+    // y'' = −2y − 3y² − y³ − 0.1 v + 0.3 cos(1.2 t). The centre of symmetry is back at 0,
+    // with no y² and no constant.
+    let about_the_well = SimModel {
+        terms: vec![
+            (Term::Monomial { px: 1, pv: 0 }, -2.0),
+            (Term::Monomial { px: 0, pv: 1 }, -0.1),
+            (Term::Monomial { px: 2, pv: 0 }, -3.0),
+            (Term::Monomial { px: 3, pv: 0 }, -1.0),
+            (Term::Cos(1), 0.3),
+        ],
+        omega: 1.2,
+        offsets: [1.0, 0.0],
+    };
+    let x = [-1.5, 1.5];
+    let r = super::choose::recentred(&about_the_well, &x).expect("recentred");
+    assert!(r.offsets[0].abs() < 1e-12, "{:?}", r.offsets);
+    let coef = |term: Term| r.terms.iter().find(|(t, _)| *t == term).map(|(_, c)| *c);
+    assert_eq!(coef(Term::Monomial { px: 2, pv: 0 }), None);
+    assert_eq!(coef(Term::Constant), None);
+    assert!((coef(Term::Monomial { px: 1, pv: 0 }).unwrap() - 1.0).abs() < 1e-12);
+    assert_eq!(coef(Term::Monomial { px: 3, pv: 0 }), Some(-1.0));
+    assert_eq!(coef(DAMPING), Some(-0.1));
+    // A centre outside the recorded range is no shifted origin: left alone.
+    assert!(super::choose::recentred(&about_the_well, &[1.5, 2.5]).is_none());
+}
