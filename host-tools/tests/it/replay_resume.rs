@@ -152,6 +152,7 @@ fn a_resumed_replay_continues_from_the_last_applied_sample_and_gives_the_whole_m
         let mode = ReplayMode {
             quantised: Some(&quantised),
             resume: true,
+            duty: None,
         };
         replay_over_with(&mut link, &quantised.recording, &config, estimated, mode).unwrap()
     };
@@ -201,6 +202,7 @@ fn a_line_no_batch_crosses_ends_at_the_deadline_saying_what_was_measured() {
         let mode = ReplayMode {
             quantised: Some(&quantised),
             resume: false,
+            duty: None,
         };
         replay_over_with(&mut link, &quantised.recording, &config, estimated, mode)
     };

@@ -32,7 +32,7 @@ use std::time::Duration;
 
 use lssi_proto::{ModelSnapshot, NakReason, PROTOCOL_VERSION};
 
-pub use framing::{BatchSource, F32Samples, batch_frame};
+pub use framing::{BatchSource, F32Samples, SystemSamples, batch_frame};
 pub use session::Link;
 
 /// How the link paces itself.
@@ -199,6 +199,31 @@ pub struct Health {
     pub frames_ok: u32,
     /// Screenings it has run.
     pub screenings: u32,
+}
+
+impl Health {
+    /// The counters of a `Health` message (`None` for any other message).
+    pub fn of(message: &lssi_proto::DeviceMsg) -> Option<Self> {
+        match *message {
+            lssi_proto::DeviceMsg::Health {
+                samples,
+                rejected,
+                crc_errors,
+                duplicates,
+                frames_ok,
+                screenings,
+                ..
+            } => Some(Self {
+                samples,
+                rejected,
+                crc_errors,
+                duplicates,
+                frames_ok,
+                screenings,
+            }),
+            _ => None,
+        }
+    }
 }
 
 /// Why the link failed; each displays as one sentence naming the port.

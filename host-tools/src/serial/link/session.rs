@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 
 use lssi_proto::{
     CONTROL_SEQ, DeviceMsg, HostMsg, MAX_FRAME_LEN, ModelSnapshot, NakReason, PROTOCOL_VERSION,
-    SnapshotCause, WireConfig, decode_frame, encode, snapshot_from_parts,
+    SnapshotCause, SystemSnapshot, WireConfig, WireSystemConfig, decode_frame, encode,
+    snapshot_from_parts,
 };
 
 use super::framing::{Incoming, Reader};
@@ -404,6 +405,74 @@ impl<'a> Link<'a> {
         )
     }
 
+    /// Configures a system's identifier (`ConfigureSystem`); the device acks or refuses.
+    pub fn configure_system(&mut self, config: &WireSystemConfig) -> Result<(), LinkError> {
+        let port = self.port.clone();
+        self.command(
+            &HostMsg::ConfigureSystem(*config),
+            "the answer to ConfigureSystem",
+            |reply| match *reply {
+                DeviceMsg::Ack { seq: CONTROL_SEQ } => Some(Ok(())),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the system's configuration",
+                    reason,
+                })),
+                // A device built without systems cannot decode the frame.
+                DeviceMsg::Nak {
+                    reason: NakReason::Decode,
+                    ..
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the system's configuration",
+                    reason: NakReason::Decode,
+                })),
+                _ => None,
+            },
+        )
+    }
+
+    /// Asks for a system's model: the device screens and answers `SystemModel` (if it has
+    /// one) and `Health`. A system's model does not come in parts: when the Health reports
+    /// screenings but its SystemModel frame was damaged on the line, the query is sent again
+    /// (the device does not screen again without new samples, so the model is the same).
+    pub fn query_system(&mut self) -> Result<(Option<SystemSnapshot>, Health), LinkError> {
+        let mut last = None;
+        for _ in 0..8 {
+            let mut model = None;
+            let port = self.port.clone();
+            let health = self.command(
+                &HostMsg::Query,
+                "the system's model (the answer to Query)",
+                |reply| match reply {
+                    DeviceMsg::SystemModel(snapshot) if snapshot.cause == SnapshotCause::Query => {
+                        model = Some(snapshot.clone());
+                        None
+                    }
+                    DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
+                    DeviceMsg::Nak {
+                        seq: CONTROL_SEQ,
+                        reason,
+                    } => Some(Err(LinkError::Refused {
+                        port: port.clone(),
+                        command: "the query",
+                        reason: *reason,
+                    })),
+                    _ => None,
+                },
+            )?;
+            self.settle(&health)?;
+            if model.is_some() || health.screenings == 0 {
+                return Ok((model, health));
+            }
+            last = Some(health);
+        }
+        Ok((None, last.unwrap_or_default()))
+    }
+
     /// Asks for the model: the device screens and answers `Model` (if it has one) and
     /// `Health`. Returns the snapshot (`None`: no model yet) and the health counters, and
     /// settles `samples_lost` and `crc_errors` from them.
@@ -507,6 +576,12 @@ impl<'a> Link<'a> {
                 _ => None,
             },
         )?;
+        self.settle(&health)?;
+        Ok((model, health))
+    }
+
+    /// Settles the counters the device's health report at the end of a stream gives.
+    fn settle(&mut self, health: &Health) -> Result<(), LinkError> {
         let counted = health.samples + health.rejected;
         if counted > self.stats.samples {
             return Err(LinkError::Overcount {
@@ -517,9 +592,9 @@ impl<'a> Link<'a> {
         }
         self.stats.samples_lost = self.stats.samples - counted;
         self.stats.crc_errors = u64::from(health.crc_errors) + self.stats.rx_crc_errors;
-        self.stats.line_error_rate = self.stats.line_error_rate_of(&health);
+        self.stats.line_error_rate = self.stats.line_error_rate_of(health);
         self.stats.duplicates = u64::from(health.duplicates);
-        Ok((model, health))
+        Ok(())
     }
 
     /// Writes the link counters to the telemetry log as the session's summary.
