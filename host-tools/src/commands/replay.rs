@@ -342,6 +342,9 @@ pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
                     eprintln!("lssi: warning: {w}.");
                 }
                 crate::out!("{}", report.report.render());
+                crate::outln!(
+                    "  (the device sends each equation's selected solution, not its whole sweep: `lssi identify --f32 --no-refine` lists every candidate)"
+                );
                 crate::out!("{}", render_link(&report.link));
             }
             return Ok(());
@@ -378,7 +381,12 @@ pub fn replay_system(
         });
     }
     let setup = setup(args)?;
-    session::replay_system(&setup, data, args.system.coupling_order, args.system.load_ohms)
+    session::replay_system(
+        &setup,
+        data,
+        args.system.coupling_order,
+        args.system.load_ohms,
+    )
 }
 
 /// Replays as the flags say and returns the report (what `lssi replay` prints).

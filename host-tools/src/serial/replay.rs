@@ -242,8 +242,8 @@ pub fn replay_system_over(
     mode: ReplayMode<'_>,
 ) -> Result<SystemReplayReport, ReplayError> {
     let file = data.recording.path.display().to_string();
-    let mut wire = system_config_to_wire(config)
-        .map_err(|e| ReplayError::Input(format!("{file}: {e}.")))?;
+    let mut wire =
+        system_config_to_wire(config).map_err(|e| ReplayError::Input(format!("{file}: {e}.")))?;
     wire.base.duty = mode.duty;
     let info = link.hello()?;
     fits(&config.base, info.window_capacity, info.max_terms).map_err(|e| {
@@ -305,21 +305,14 @@ pub fn replay_system_over(
             health.samples, health.rejected
         ))
     })?;
-    let model = system_model_from_snapshot::<{ crate::system::TERM_CAPACITY }>(&snapshot)
-        .map_err(|e| {
+    let model =
+        system_model_from_snapshot::<{ crate::system::TERM_CAPACITY }>(&snapshot).map_err(|e| {
             ReplayError::Input(format!(
                 "{}: the device's model cannot be read: {e}.",
                 link.port()
             ))
         })?;
-    let mut report = SystemReport::of(
-        &model,
-        config,
-        omega_estimated,
-        model.rejected,
-        "f32",
-        data,
-    );
+    let mut report = SystemReport::of(&model, config, omega_estimated, model.rejected, "f32", data);
     crate::system::report::add_standard_errors(&mut report, data);
     link.log_summary()?;
     Ok(SystemReplayReport {

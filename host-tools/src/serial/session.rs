@@ -15,8 +15,8 @@ use crate::serial::device::{DeviceProcess, SimOptions};
 use crate::serial::link::{Link, LinkError, LinkOptions, LinkStats, Observer};
 use crate::serial::quantise::{Quantised, quantise};
 use crate::serial::replay::{
-    ReplayError, ReplayMode, ReplayReport, SystemReplayReport, decimate_recording,
-    decimate_system, replay_over_with, replay_system_over, rows_per_row, wire_config,
+    ReplayError, ReplayMode, ReplayReport, SystemReplayReport, decimate_recording, decimate_system,
+    replay_over_with, replay_system_over, rows_per_row, wire_config,
 };
 use crate::system::SystemData;
 use crate::telemetry::defmt::{DefmtLines, Tables};

@@ -22,6 +22,7 @@ mod refine_supports;
 mod replay_cli;
 mod replay_link;
 mod replay_resume;
+mod replay_system;
 mod spikes;
 mod standard_errors;
 mod stream;
