@@ -360,6 +360,7 @@ fn replay_error(error: ReplayError, device: &Device) -> CliError {
             byte_error_rate,
             acked,
             samples,
+            ..
         }) => {
             let measured = if frame_loss > 0.0 || byte_error_rate > 0.0 {
                 format!(

@@ -294,12 +294,9 @@ pub enum LinkError {
         counted: u64,
     },
     /// No progress for the whole deadline: the line is too poor (or the device too slow).
-    #[error(
-        "{port}: no progress for {:.1} s while the host waited for {waiting_for}, so it gives up: {:.1} % of the frames it sent were lost (a byte error rate of about {:.2} %); the device had acknowledged {acked} of {samples} samples, and `lssi replay --resume --port {port}` continues from there",
-        .waited.as_secs_f64(),
-        100.0 * .frame_loss,
-        100.0 * .byte_error_rate
-    )]
+    /// Before any sample was sent (waiting for the answer to `Hello`, `Configure` or a
+    /// `Query`), it says so instead of a frame loss and a position nothing was measured for.
+    #[error("{}", deadline_text(.port, .waiting_for, *.waited, *.frame_loss, *.byte_error_rate, *.acked, *.samples, *.sent))]
     Deadline {
         /// The port.
         port: String,
@@ -315,6 +312,8 @@ pub enum LinkError {
         acked: u64,
         /// Samples in the recording.
         samples: u64,
+        /// Samples sent to the device by then (0: the stream had not begun).
+        sent: u64,
     },
     /// The telemetry log could not be written.
     #[error("{}: cannot append to the telemetry log: {source}", .path.display())]
@@ -324,6 +323,31 @@ pub enum LinkError {
         /// What the operating system said.
         source: io::Error,
     },
+}
+
+/// The sentence of [`LinkError::Deadline`].
+#[allow(clippy::too_many_arguments, reason = "the error's fields, one each")]
+fn deadline_text(
+    port: &str,
+    waiting_for: &str,
+    waited: Duration,
+    frame_loss: f64,
+    byte_error_rate: f64,
+    acked: u64,
+    samples: u64,
+    sent: u64,
+) -> String {
+    let waited = waited.as_secs_f64();
+    if sent == 0 {
+        return format!(
+            "{port}: the host waited {waited:.1} s for {waiting_for} and none came, so it gives up before sending a single sample (nothing was streamed); check that the device runs the lssi replay firmware at this baud rate, or give a slow one a longer --deadline, and run the same command again"
+        );
+    }
+    format!(
+        "{port}: no progress for {waited:.1} s while the host waited for {waiting_for}, so it gives up: {:.1} % of the frames it sent were lost (a byte error rate of about {:.2} %); the device had acknowledged {acked} of {samples} samples, and `lssi replay --resume --port {port}` continues from there",
+        100.0 * frame_loss,
+        100.0 * byte_error_rate
+    )
 }
 
 /// ` (detail)`, or nothing for no detail.

@@ -341,6 +341,7 @@ impl<'a> Link<'a> {
             byte_error_rate,
             acked: self.stats.samples_acked,
             samples: self.stats.samples,
+            sent: self.stats.samples_sent,
         }
     }
 
