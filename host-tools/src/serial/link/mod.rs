@@ -128,6 +128,10 @@ pub struct LinkStats {
     pub model_parts: u64,
     /// The smoothed round trip of a batch, in milliseconds (what the waits follow).
     pub round_trip_ms: f64,
+    /// How the device's coefficients moved between its last two duty-cycle windows, from its
+    /// last health report (protocol 7; `null` from a device the host feeds, which runs no
+    /// duty cycle).
+    pub drift: Option<lssi_proto::WireDrift>,
 }
 
 impl LinkStats {
@@ -185,7 +189,7 @@ pub struct DeviceInfo {
 }
 
 /// The device's health counters, as its last `Health` frame reported them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Health {
     /// Samples the identifier accepted.
     pub samples: u64,
@@ -199,6 +203,8 @@ pub struct Health {
     pub frames_ok: u32,
     /// Screenings it has run.
     pub screenings: u32,
+    /// Its duty cycle's drift (since protocol 7).
+    pub drift: Option<lssi_proto::WireDrift>,
 }
 
 impl Health {
@@ -212,6 +218,7 @@ impl Health {
                 duplicates,
                 frames_ok,
                 screenings,
+                drift,
                 ..
             } => Some(Self {
                 samples,
@@ -220,6 +227,7 @@ impl Health {
                 duplicates,
                 frames_ok,
                 screenings,
+                drift,
             }),
             _ => None,
         }

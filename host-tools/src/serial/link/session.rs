@@ -211,24 +211,7 @@ impl<'a> Link<'a> {
                         match &message {
                             DeviceMsg::Log { bytes } => self.observer.device_log(bytes),
                             DeviceMsg::Model(snapshot) => self.observer.model(snapshot),
-                            DeviceMsg::Health {
-                                samples,
-                                rejected,
-                                crc_errors,
-                                duplicates,
-                                frames_ok,
-                                screenings,
-                                ..
-                            } => {
-                                self.health = Some(Health {
-                                    samples: *samples,
-                                    rejected: *rejected,
-                                    crc_errors: *crc_errors,
-                                    duplicates: *duplicates,
-                                    frames_ok: *frames_ok,
-                                    screenings: *screenings,
-                                });
-                            }
+                            DeviceMsg::Health { .. } => self.health = Health::of(&message),
                             _ => {}
                         }
                         Ok(Some(Event::Message(message)))
@@ -550,22 +533,7 @@ impl<'a> Link<'a> {
                     model = Some(snapshot.clone());
                     None
                 }
-                DeviceMsg::Health {
-                    samples,
-                    rejected,
-                    crc_errors,
-                    duplicates,
-                    frames_ok,
-                    screenings,
-                    ..
-                } => Some(Ok(Health {
-                    samples: *samples,
-                    rejected: *rejected,
-                    crc_errors: *crc_errors,
-                    duplicates: *duplicates,
-                    frames_ok: *frames_ok,
-                    screenings: *screenings,
-                })),
+                DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
                 DeviceMsg::Nak {
                     seq: CONTROL_SEQ,
                     reason,
@@ -595,6 +563,7 @@ impl<'a> Link<'a> {
         self.stats.crc_errors = u64::from(health.crc_errors) + self.stats.rx_crc_errors;
         self.stats.line_error_rate = self.stats.line_error_rate_of(health);
         self.stats.duplicates = u64::from(health.duplicates);
+        self.stats.drift = health.drift;
         Ok(())
     }
 
