@@ -361,9 +361,12 @@ pub fn monitor_port(
         setup.map_or(0.0, |s| s.row_hz),
         setup.and_then(|s| s.duty),
     )?;
-    if let Some(setup) = setup {
-        configure_port(&mut serial, port, &session.config, setup, log)?;
-    }
+    // What the board sent after its Ack, in the same read: the listening starts with it.
+    let leftover = match setup {
+        Some(setup) => configure_port(&mut serial, port, &session.config, setup, log)?,
+        None => Vec::new(),
+    };
+    let serial = std::io::Cursor::new(leftover).chain(serial);
     let limit = Duration::from_secs_f64(listen_to.seconds.unwrap_or(f64::MAX / 4.0).min(1.0e9));
     let mut view = View::new(listen_to.json, out);
     listen(serial, &session, log, &mut view, limit)?;
@@ -372,14 +375,15 @@ pub fn monitor_port(
 }
 
 /// Sends the board its configuration and waits for the answer (other frames are logged and
-/// passed over): `Ack` configures it, a `Nak` is one sentence naming the reason.
+/// passed over): `Ack` configures it (returned: the bytes read after it), a `Nak` is one
+/// sentence naming the reason.
 fn configure_port<P: Read + Write + ?Sized>(
     serial: &mut P,
     port: &str,
     config: &Config,
     setup: PortSetup,
     log: &mut TelemetryLog,
-) -> Result<(), CliError> {
+) -> Result<Vec<u8>, CliError> {
     let mut wire = config_to_wire(config).map_err(|e| CliError::Input(format!("{e}.")))?;
     wire.duty = setup.duty;
     let mut frame = [0u8; lssi_proto::MAX_HOST_FRAME_LEN];
@@ -426,7 +430,7 @@ fn configure_port<P: Read + Write + ?Sized>(
                     "{port}: the link closed before the device answered the configuration ({what})."
                 )));
             }
-            for &byte in &buffer[..n] {
+            for (i, &byte) in buffer[..n].iter().enumerate() {
                 if byte != 0 {
                     raw.push(byte);
                 } else if !raw.is_empty() {
@@ -436,7 +440,7 @@ fn configure_port<P: Read + Write + ?Sized>(
                 match decoder.push::<DeviceMsg>(byte) {
                     Some(Ok(DeviceMsg::Ack {
                         seq: lssi_proto::CONTROL_SEQ,
-                    })) => return Ok(()),
+                    })) => return Ok(buffer[i + 1..n].to_vec()),
                     Some(Ok(DeviceMsg::Nak {
                         seq: lssi_proto::CONTROL_SEQ,
                         reason,

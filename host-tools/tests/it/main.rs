@@ -13,6 +13,7 @@ mod harvester;
 mod libraries;
 mod log_cli;
 mod low_rate;
+mod monitor_port;
 mod ode;
 mod offsets;
 mod plot;
