@@ -257,6 +257,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             latency_max_ns: 0,
             screenings_skipped: 0,
             sample_rate_hz: 0.0,
+            // No duty cycle: the host sends the samples.
+            drift: None,
         }
     }
 }

@@ -362,3 +362,99 @@ pub fn model_from_snapshot<const P: usize>(
 fn to_f32<T: Real>(value: T) -> f32 {
     value.to_f64() as f32
 }
+
+/// A duty cycle's drift as `Health` carries it (protocol version 7), field for field.
+pub const fn drift_to_wire(drift: &crate::standalone::Drift) -> lssi_proto::WireDrift {
+    lssi_proto::WireDrift {
+        windows: drift.windows,
+        relative: drift.relative,
+        largest: drift.largest,
+        largest_term: drift.largest_term,
+        support_changes: drift.support_changes,
+    }
+}
+
+#[cfg(test)]
+mod drift_tests {
+    use super::drift_to_wire;
+    use crate::standalone::Drift;
+    use lssi_proto::{DeviceMsg, ModelSnapshot, TermCode, TermKind, decode_frame, encode};
+
+    fn model(coefficients: &[f32]) -> ModelSnapshot {
+        let mut m = ModelSnapshot::default();
+        for (a, &c) in coefficients.iter().enumerate() {
+            let code = TermCode {
+                kind: TermKind::Monomial,
+                a: u8::try_from(a + 1).unwrap(),
+                b: 0,
+            };
+            m.terms.push(code).unwrap();
+            m.coefficients.push(c).unwrap();
+        }
+        m
+    }
+
+    /// The drift a reporter computes between two windows reaches the host in `Health`
+    /// unchanged: the largest change (term 1, 0.5 → 0.6: 20 %), a term that left (1), the
+    /// RMS over the three terms in either model.
+    #[test]
+    fn the_drift_crosses_in_health_field_for_field() {
+        let before = model(&[-1.0, 0.5, 0.25, 0.0]);
+        let after = model(&[-1.0, 0.6, 0.0, 0.0]);
+        let drift = Drift::between(&before, &after, 4);
+        assert_eq!(drift.windows, 4);
+        assert_eq!(drift.support_changes, 1);
+        assert_eq!(drift.largest, 1.0);
+        assert_eq!(drift.largest_term, 2);
+        let rms = libm::sqrtf((0.0 + 0.2f32 * 0.2 / 1.0 + 1.0) / 3.0);
+        assert!((drift.relative - rms).abs() < 1e-3, "{}", drift.relative);
+        let wire = drift_to_wire(&drift);
+        let health = DeviceMsg::Health {
+            samples: 5,
+            rejected: 0,
+            buffer_fill: 0,
+            cost_mean: 0,
+            cost_max: 0,
+            cost_unit: lssi_proto::CostUnit::Ticks,
+            watchdog: 0,
+            crc_errors: 0,
+            frames_ok: 0,
+            screen_cost: 0,
+            screen_cost_max: 0,
+            screenings: 0,
+            duplicates: 0,
+            decode_errors: 0,
+            overruns: 0,
+            queue_high_water: 0,
+            latency_max_ns: 0,
+            screenings_skipped: 0,
+            sample_rate_hz: 200.0,
+            drift: Some(wire),
+        };
+        let mut frame = [0u8; lssi_proto::MAX_DEVICE_FRAME_LEN];
+        let len = encode(&health, &mut frame).unwrap();
+        let back: DeviceMsg = decode_frame(&mut frame[..len]).unwrap();
+        let DeviceMsg::Health {
+            drift: Some(got), ..
+        } = back
+        else {
+            panic!("{back:?}");
+        };
+        assert_eq!(
+            (
+                got.windows,
+                got.relative,
+                got.largest,
+                got.largest_term,
+                got.support_changes
+            ),
+            (
+                drift.windows,
+                drift.relative,
+                drift.largest,
+                drift.largest_term,
+                drift.support_changes
+            )
+        );
+    }
+}

@@ -96,6 +96,10 @@ pub enum DeviceMsg {
         screenings_skipped: u32,
         /// Standalone device: the sampling rate in Hz (0 when the host sends the samples).
         sample_rate_hz: f32,
+        /// Standalone device on a duty cycle: how the model's coefficients moved between its
+        /// last two windows (`None` without a duty cycle, and before the first window's
+        /// report). Since version 7.
+        drift: Option<WireDrift>,
     },
     /// Raw defmt frames, decoded on the host with the firmware's ELF.
     Log {
@@ -124,12 +128,35 @@ impl MaxSize for DeviceMsg {
             + 8 * u32::POSTCARD_MAX_SIZE
             + 3 * u32::POSTCARD_MAX_SIZE
             + u16::POSTCARD_MAX_SIZE
-            + f32::POSTCARD_MAX_SIZE,
+            + f32::POSTCARD_MAX_SIZE
+            + <Option<WireDrift>>::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
         ModelPart::POSTCARD_MAX_SIZE,
         #[cfg(feature = "system")]
         SystemSnapshot::POSTCARD_MAX_SIZE,
     ]);
+}
+
+/// How a duty-cycled device's model moved from one window to the next (in
+/// [`DeviceMsg::Health`]): what a harvester that changes over weeks shows first. Since
+/// version 7.
+///
+/// Per term, the relative change `|c − p| / |p|` of its coefficient from the previous
+/// window's model `p` to this one's `c` (1 for a term that entered or left the model).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireDrift {
+    /// Windows reported since the device was configured (the latest included).
+    pub windows: u32,
+    /// Root mean square of the terms' relative changes, over the terms in either model
+    /// (0 after the first window, which has nothing to compare with).
+    pub relative: f32,
+    /// The largest relative change.
+    pub largest: f32,
+    /// The term that made it: its index in the model's library.
+    pub largest_term: u8,
+    /// Terms that entered or left the model.
+    pub support_changes: u8,
 }
 
 /// Why the device refused a frame or a command.

@@ -17,7 +17,9 @@ use serde_json::Value;
 
 use crate::error::CliError;
 use crate::recording::ColumnNames;
-use crate::serial::monitor::{DEFAULT_STANDALONE, Listen, QemuPlay, monitor_port, monitor_qemu};
+use crate::serial::monitor::{
+    DEFAULT_STANDALONE, IMAGE_ROW_HZ, Listen, PortSetup, QemuPlay, monitor_port, monitor_qemu,
+};
 use crate::telemetry::{TelemetryLog, now_us};
 
 /// Arguments of `lssi monitor`.
@@ -56,6 +58,23 @@ pub struct MonitorArgs {
     /// Stop after this many seconds of wall time [default: --port never, --qemu 600].
     #[arg(long, value_name = "SECONDS")]
     pub seconds: Option<f64>,
+    /// With --port: configure the board to this many rows a second before listening (its
+    /// ADC's rate divided by a whole number; the board naks another) [default: the board's
+    /// own configuration, untouched; with a duty cycle, 200, the image's default].
+    #[arg(
+        long,
+        value_name = "HZ",
+        conflicts_with = "qemu",
+        allow_hyphen_values = true
+    )]
+    pub row_rate: Option<f64>,
+    /// Configure a duty cycle: seconds of identification a window, after which the device
+    /// reports (Model, then Health with the drift) and sleeps (with --duty-interval).
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub duty_window: Option<f64>,
+    /// The duty cycle's seconds asleep between windows (with --duty-window).
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub duty_interval: Option<f64>,
     /// Which header names hold which quantity (--qemu).
     #[command(flatten)]
     pub columns: ColumnNames,
@@ -80,6 +99,17 @@ pub fn monitor(args: &MonitorArgs, out: &mut dyn Write) -> Result<Option<Value>,
             flag: "--seconds",
             value: s.to_string(),
             requirement: "a positive number of seconds".into(),
+        });
+    }
+    let duty = crate::commands::replay::duty_from_flags(args.duty_window, args.duty_interval)?;
+    let row_rate = crate::commands::replay::row_rate_from_flag(args.row_rate)?;
+    if let Some(r) = row_rate
+        && r > 1.0e6
+    {
+        return Err(CliError::BadFlag {
+            flag: "--row-rate",
+            value: r.to_string(),
+            requirement: "at most 1 MHz".into(),
         });
     }
     let log_path = args
@@ -107,11 +137,16 @@ pub fn monitor(args: &MonitorArgs, out: &mut dyn Write) -> Result<Option<Value>,
                     .firmware
                     .clone()
                     .unwrap_or_else(|| PathBuf::from(DEFAULT_STANDALONE)),
+                duty,
             };
             monitor_qemu(&play, listen, &mut log, out).map(Some)
         }
         (None, Some(port)) => {
-            monitor_port(port, args.baud, listen, &mut log, out)?;
+            let setup = (row_rate.is_some() || duty.is_some()).then(|| PortSetup {
+                row_hz: row_rate.unwrap_or(IMAGE_ROW_HZ),
+                duty,
+            });
+            monitor_port(port, args.baud, listen, setup, &mut log, out)?;
             Ok(None)
         }
         (None, None) => Err(CliError::Input(

@@ -17,7 +17,7 @@ use crate::identify::{self, Options};
 use crate::recording::ColumnNames;
 use crate::serial::device::{BURST_RATE, DEFAULT_FIRMWARE, MAX_BURST, SimOptions};
 use crate::serial::link::LinkOptions;
-use crate::serial::replay::{ReplayReport, render_link};
+use crate::serial::replay::{ReplayReport, SystemReplayReport, render_link};
 use crate::serial::session::{self, Device, Setup};
 
 /// How the samples cross the link (`--encoding`).
@@ -105,15 +105,94 @@ pub struct ReplayArgs {
     /// Seconds the link goes on without progress before it gives up.
     #[arg(long, default_value_t = 60.0, value_name = "SECONDS", value_parser = number, allow_hyphen_values = true)]
     pub deadline: f64,
+    /// Rows a second sent in the configuration: the recording's rows are averaged down to it
+    /// (the recording's rate divided by a whole number; a first-order CIC, as a device's
+    /// ADC oversampler), and the model is that of the averaged recording [default: the
+    /// recording's own rate, so that the model is `lssi identify --f32`'s].
+    #[arg(long, value_name = "HZ", value_parser = number, allow_hyphen_values = true)]
+    pub row_rate: Option<f64>,
+    /// The duty cycle's window sent in the configuration: seconds of identification before
+    /// the device reports and sleeps (with --duty-interval; a device the host feeds, such
+    /// as firmware-sim, ignores it).
+    #[arg(long, value_name = "SECONDS", value_parser = number, allow_hyphen_values = true)]
+    pub duty_window: Option<f64>,
+    /// The duty cycle's interval sent in the configuration: seconds asleep between windows
+    /// (with --duty-window).
+    #[arg(long, value_name = "SECONDS", value_parser = number, allow_hyphen_values = true)]
+    pub duty_interval: Option<f64>,
     /// Which header names hold which quantity.
     #[command(flatten)]
     pub columns: ColumnNames,
     /// The identifier's flags (shared with `lssi identify`).
     #[command(flatten)]
     pub identifier: IdentifierArgs,
+    /// A system's flags (a recording with an electrical column, V or i): shared with
+    /// `lssi identify`.
+    #[command(flatten)]
+    pub system: crate::system::SystemArgs,
     /// Print one JSON object instead of text.
     #[arg(long, help_heading = "Output")]
     pub json: bool,
+}
+
+/// The duty cycle the flags ask for (`None` without them), or the sentence saying what is
+/// wrong: both flags or neither, a window of a positive number of seconds up to a day, an
+/// interval of a positive number of seconds up to 30 days.
+pub fn duty_from_flags(
+    window: Option<f64>,
+    interval: Option<f64>,
+) -> Result<Option<lssi_proto::WireDuty>, CliError> {
+    let bad = |flag, value: f64, requirement: &str| CliError::BadFlag {
+        flag,
+        value: value.to_string(),
+        requirement: requirement.into(),
+    };
+    match (window, interval) {
+        (None, None) => Ok(None),
+        (Some(w), None) => Err(bad(
+            "--duty-window",
+            w,
+            "given with --duty-interval (a duty cycle is a window of identification and the sleep after it)",
+        )),
+        (None, Some(i)) => Err(bad(
+            "--duty-interval",
+            i,
+            "given with --duty-window (a duty cycle is a window of identification and the sleep after it)",
+        )),
+        (Some(w), Some(i)) => {
+            if !(w.is_finite() && w > 0.0 && w <= 86_400.0) {
+                return Err(bad(
+                    "--duty-window",
+                    w,
+                    "a positive number of seconds, at most a day",
+                ));
+            }
+            if !(i.is_finite() && i > 0.0 && i <= 2_592_000.0) {
+                return Err(bad(
+                    "--duty-interval",
+                    i,
+                    "a positive number of seconds, at most 30 days",
+                ));
+            }
+            Ok(Some(lssi_proto::WireDuty {
+                window: w as f32,
+                interval: i as f32,
+            }))
+        }
+    }
+}
+
+/// The `--row-rate` flag checked on its own (against the recording later): a positive,
+/// finite number of rows a second.
+pub fn row_rate_from_flag(rate: Option<f64>) -> Result<Option<f64>, CliError> {
+    match rate {
+        Some(r) if !(r.is_finite() && r > 0.0) => Err(CliError::BadFlag {
+            flag: "--row-rate",
+            value: r.to_string(),
+            requirement: "a positive number of rows a second".into(),
+        }),
+        other => Ok(other),
+    }
 }
 
 /// A flag's number: any decimal number (a negative or out-of-range one is refused later by
@@ -252,6 +331,26 @@ impl ReplayArgs {
 
 /// Runs `lssi replay`.
 pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
+    // A recording with an electrical channel is a system (issue 26; crate::system).
+    match crate::system::read_if_system(&args.file, &args.columns, &args.system.columns)? {
+        Some(data) => {
+            let report = replay_system(args, &data)?;
+            if args.json {
+                crate::outln!("{}", serde_json::to_string(&report).unwrap_or_default());
+            } else {
+                for w in &report.report.warnings {
+                    eprintln!("lssi: warning: {w}.");
+                }
+                crate::out!("{}", report.report.render());
+                crate::outln!(
+                    "  (the device sends each equation's selected solution, not its whole sweep: `lssi identify --f32 --no-refine` lists every candidate)"
+                );
+                crate::out!("{}", render_link(&report.link));
+            }
+            return Ok(());
+        }
+        None => crate::system::refuse_stray_flags(&args.file, &args.system)?,
+    }
     let report = replay(args)?;
     print_report(&report, args.json);
     if !args.json
@@ -267,8 +366,36 @@ pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// Replays a system's recording as the flags say and returns the report.
+pub fn replay_system(
+    args: &ReplayArgs,
+    data: &crate::system::SystemData,
+) -> Result<SystemReplayReport, CliError> {
+    if let Some(r) = args.system.load_ohms
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err(CliError::BadFlag {
+            flag: "--load-ohms",
+            value: r.to_string(),
+            requirement: "a positive resistance in ohms".into(),
+        });
+    }
+    let setup = setup(args)?;
+    session::replay_system(
+        &setup,
+        data,
+        args.system.coupling_order,
+        args.system.load_ohms,
+    )
+}
+
 /// Replays as the flags say and returns the report (what `lssi replay` prints).
 pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
+    session::replay(&setup(args)?)
+}
+
+/// The session's setup from the flags, checked.
+fn setup(args: &ReplayArgs) -> Result<Setup, CliError> {
     let options = args.options()?;
     let link = args.link_options()?;
     let sim = args.sim_options()?;
@@ -293,8 +420,10 @@ pub fn replay(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         progress: std::io::stderr().is_terminal() && !args.json,
         quantise: args.encoding == Encoding::I16,
         resume: args.resume,
+        row_rate: row_rate_from_flag(args.row_rate)?,
+        duty: duty_from_flags(args.duty_window, args.duty_interval)?,
     };
-    session::replay(&setup)
+    Ok(setup)
 }
 
 /// The probability that firmware-sim damages a byte, as the flags ask: dropped, else flipped,

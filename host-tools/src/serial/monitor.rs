@@ -83,6 +83,8 @@ pub struct QemuPlay {
     pub image_config: bool,
     /// The standalone firmware image.
     pub firmware: PathBuf,
+    /// The duty cycle stored with the configuration (`--duty-window`, `--duty-interval`).
+    pub duty: Option<lssi_proto::WireDuty>,
 }
 
 /// How the frames are shown and how long to listen.
@@ -134,7 +136,7 @@ pub fn monitor_qemu(
         .map_err(|e| CliError::Input(format!("no temporary directory: {e}.")))?;
     let image = dir.path().join("recording.bin");
     let stored = (!play.image_config).then_some(&config);
-    let bytes = recording_image(&recording, rate, stored)?;
+    let bytes = recording_image_with(&recording, rate, stored, play.duty)?;
     std::fs::write(&image, &bytes).map_err(|e| CliError::Write {
         path: image.clone(),
         source: e,
@@ -154,7 +156,13 @@ pub fn monitor_qemu(
         config: session_config,
         omega_estimated,
     };
-    log_session(log, &session, &format!("qemu:{}", file.display()), rate)?;
+    log_session(
+        log,
+        &session,
+        &format!("qemu:{}", file.display()),
+        rate,
+        play.duty,
+    )?;
     let socket = dir.path().join("uart.sock");
     let mut child = qemu::command(&qemu)
         .args(["-icount", "shift=4,sleep=off", "-kernel"])
@@ -211,6 +219,16 @@ pub fn recording_image(
     rate: f64,
     config: Option<&Config>,
 ) -> Result<Vec<u8>, CliError> {
+    recording_image_with(recording, rate, config, None)
+}
+
+/// [`recording_image`] with a duty cycle in the stored configuration.
+pub fn recording_image_with(
+    recording: &Recording,
+    rate: f64,
+    config: Option<&Config>,
+    duty: Option<lssi_proto::WireDuty>,
+) -> Result<Vec<u8>, CliError> {
     let file = recording.path.display();
     let samples: Vec<_> = recording.samples().collect();
     let velocity = samples.first().is_some_and(|s| s.v.is_some());
@@ -225,7 +243,9 @@ pub fn recording_image(
     }
     let mut frame = Vec::new();
     if let Some(config) = config {
-        let wire = config_to_wire(config).map_err(|e| CliError::Input(format!("{file}: {e}.")))?;
+        let mut wire =
+            config_to_wire(config).map_err(|e| CliError::Input(format!("{file}: {e}.")))?;
+        wire.duty = duty;
         let mut buffer = [0u8; lssi_proto::MAX_HOST_FRAME_LEN];
         let len = encode(&HostMsg::Configure(wire), &mut buffer).map_err(|e| {
             CliError::Input(format!("{file}: the configuration does not encode: {e}."))
@@ -264,8 +284,12 @@ fn log_session(
     session: &Session,
     source: &str,
     rate: f64,
+    duty: Option<lssi_proto::WireDuty>,
 ) -> Result<(), CliError> {
-    let wire = config_to_wire(&session.config).ok();
+    let wire = config_to_wire(&session.config).ok().map(|mut w| {
+        w.duty = duty;
+        w
+    });
     let info = json!({
         "tool": "lssi monitor",
         "source": source,
@@ -280,29 +304,165 @@ fn log_session(
         })
 }
 
+/// The configuration `lssi monitor --port` sends a standalone board for a row rate: the
+/// image's own for that rate (crates/lssi-firmware's `default_config`: a derivative window
+/// of a tenth of a second, a row every sample, a screening a second; lssi-core's defaults
+/// otherwise).
+pub fn port_config(row_hz: f64) -> Config {
+    Config {
+        sample_period: 1.0 / row_hz,
+        window: ((row_hz / 10.0) as usize | 1).clamp(7, lssi_device::DEFAULT_WINDOW - 1),
+        row_stride: 1,
+        screening_period: (row_hz as u32).max(100),
+        ..Config::default()
+    }
+}
+
+/// The row rate of a standalone image's own configuration, Hz (crates/lssi-firmware's
+/// `DEFAULT_ROW_HZ`): what `lssi monitor --port` sends with a duty cycle and no
+/// `--row-rate`.
+pub const IMAGE_ROW_HZ: f64 = 200.0;
+
+/// What `lssi monitor --port` sends the board before it listens (`--row-rate`,
+/// `--duty-window`, `--duty-interval`): its configuration (rows at `row_hz`, the duty
+/// cycle).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PortSetup {
+    /// Rows a second.
+    pub row_hz: f64,
+    /// The duty cycle, if any.
+    pub duty: Option<lssi_proto::WireDuty>,
+}
+
 /// Listens to a standalone board on serial port `port` until `listen_to.seconds` (default:
-/// for ever), logging to `log` and showing the frames on `out`.
+/// for ever), logging to `log` and showing the frames on `out`. With `setup`, first sends it
+/// the configuration (`Configure`, resent until acknowledged, at most three times) and
+/// decodes its models with it.
 pub fn monitor_port(
     port: &str,
     baud: u32,
     listen_to: Listen,
+    setup: Option<PortSetup>,
     log: &mut TelemetryLog,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let serial = serialport::new(port, baud)
+    let mut serial = serialport::new(port, baud)
         .timeout(Duration::from_millis(200))
         .open()
         .map_err(|e| CliError::Device(format!("{port}: cannot open the serial port: {e}.")))?;
     let session = Session {
-        config: Config::default(),
+        config: setup.map_or_else(Config::default, |s| port_config(s.row_hz)),
         omega_estimated: false,
     };
-    log_session(log, &session, port, 0.0)?;
+    log_session(
+        log,
+        &session,
+        port,
+        setup.map_or(0.0, |s| s.row_hz),
+        setup.and_then(|s| s.duty),
+    )?;
+    // What the board sent after its Ack, in the same read: the listening starts with it.
+    let leftover = match setup {
+        Some(setup) => configure_port(&mut serial, port, &session.config, setup, log)?,
+        None => Vec::new(),
+    };
+    let serial = std::io::Cursor::new(leftover).chain(serial);
     let limit = Duration::from_secs_f64(listen_to.seconds.unwrap_or(f64::MAX / 4.0).min(1.0e9));
     let mut view = View::new(listen_to.json, out);
     listen(serial, &session, log, &mut view, limit)?;
     let _ = log.sync();
     Ok(())
+}
+
+/// Sends the board its configuration and waits for the answer (other frames are logged and
+/// passed over): `Ack` configures it (returned: the bytes read after it), a `Nak` is one
+/// sentence naming the reason.
+fn configure_port<P: Read + Write + ?Sized>(
+    serial: &mut P,
+    port: &str,
+    config: &Config,
+    setup: PortSetup,
+    log: &mut TelemetryLog,
+) -> Result<Vec<u8>, CliError> {
+    let mut wire = config_to_wire(config).map_err(|e| CliError::Input(format!("{e}.")))?;
+    wire.duty = setup.duty;
+    let mut frame = [0u8; lssi_proto::MAX_HOST_FRAME_LEN];
+    let len = encode(&HostMsg::Configure(wire), &mut frame)
+        .map_err(|e| CliError::Input(format!("the configuration does not encode: {e}.")))?;
+    let what = match setup.duty {
+        Some(d) => format!(
+            "rows at {} Hz, windows of {} s every {} s",
+            setup.row_hz, d.window, d.interval
+        ),
+        None => format!("rows at {} Hz", setup.row_hz),
+    };
+    let mut decoder = DeviceFrameDecoder::new();
+    let mut raw: Vec<u8> = Vec::new();
+    let mut buffer = [0u8; 1024];
+    for _ in 0..3 {
+        // A lone 0x00 ends whatever half frame the board holds.
+        serial
+            .write_all(&[0])
+            .and_then(|()| serial.write_all(&frame[..len]))
+            .map_err(|e| {
+                CliError::Device(format!("{port}: cannot write the configuration: {e}."))
+            })?;
+        let sent = Instant::now();
+        while sent.elapsed() < Duration::from_secs(2) {
+            let n = match serial.read(&mut buffer) {
+                Ok(n) => n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+                    ) =>
+                {
+                    continue;
+                }
+                Err(e) => {
+                    return Err(CliError::Device(format!(
+                        "{port}: the device's link failed: {e}."
+                    )));
+                }
+            };
+            if n == 0 {
+                return Err(CliError::Device(format!(
+                    "{port}: the link closed before the device answered the configuration ({what})."
+                )));
+            }
+            for (i, &byte) in buffer[..n].iter().enumerate() {
+                if byte != 0 {
+                    raw.push(byte);
+                } else if !raw.is_empty() {
+                    let _ = log.append(RecordKind::Frame, &raw);
+                    raw.clear();
+                }
+                match decoder.push::<DeviceMsg>(byte) {
+                    Some(Ok(DeviceMsg::Ack {
+                        seq: lssi_proto::CONTROL_SEQ,
+                    })) => return Ok(buffer[i + 1..n].to_vec()),
+                    Some(Ok(DeviceMsg::Nak {
+                        seq: lssi_proto::CONTROL_SEQ,
+                        reason,
+                    })) => {
+                        return Err(CliError::Device(format!(
+                            "{port}: the device refused the configuration ({what}): {}.",
+                            crate::serial::link::nak_text(reason)
+                        )));
+                    }
+                    Some(Err(lssi_proto::Error::VersionMismatch { theirs, ours })) => {
+                        return Err(CliError::Device(format!(
+                            "{port}: the device speaks lssi protocol version {theirs}, but this build speaks version {ours}; flash a matching firmware."
+                        )));
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Err(CliError::Device(format!(
+        "{port}: the device did not answer the configuration ({what}) in three tries of 2 s; is it a standalone lssi device at this baud rate?"
+    )))
 }
 
 /// Reads frames until the final model, the end of the stream, or `limit`.
@@ -399,14 +559,15 @@ fn summary(seen: &Seen, session: &Session, rate: f64) -> Result<Value, CliError>
         Some(DeviceMsg::Health { samples, .. }) => *samples,
         _ => 0,
     };
-    let (overruns, high_water, latency) = match &seen.health {
+    let (overruns, high_water, latency, drift) = match &seen.health {
         Some(DeviceMsg::Health {
             overruns,
             queue_high_water,
             latency_max_ns,
+            drift,
             ..
-        }) => (*overruns, *queue_high_water, *latency_max_ns),
-        _ => (0, 0, 0),
+        }) => (*overruns, *queue_high_water, *latency_max_ns, *drift),
+        _ => (0, 0, 0, None),
     };
     Ok(json!({
         "samples": samples,
@@ -415,6 +576,7 @@ fn summary(seen: &Seen, session: &Session, rate: f64) -> Result<Value, CliError>
         "queue_high_water": high_water,
         "latency_max_us": f64::from(latency) / 1000.0,
         "frames": seen.frames,
+        "drift": drift.map(|d| crate::telemetry::decode::drift_json(&d)),
         "terms": terms,
     }))
 }
@@ -493,10 +655,14 @@ fn health_line(health: &DeviceMsg) -> String {
             screenings_skipped,
             sample_rate_hz,
             crc_errors,
+            drift,
             ..
         } => format!(
-            "samples {samples} at {sample_rate_hz} Hz ({rejected} rejected)   overruns {overruns}   queue high-water {queue_high_water}   worst latency {:.1} µs   screenings {screenings} ({screenings_skipped} skipped)   bad frames in {crc_errors}",
-            f64::from(*latency_max_ns) / 1000.0
+            "samples {samples} at {sample_rate_hz} Hz ({rejected} rejected)   overruns {overruns}   queue high-water {queue_high_water}   worst latency {:.1} µs   screenings {screenings} ({screenings_skipped} skipped)   bad frames in {crc_errors}{}",
+            f64::from(*latency_max_ns) / 1000.0,
+            drift
+                .map(|d| format!("   {}", crate::telemetry::decode::drift_text(&d)))
+                .unwrap_or_default()
         ),
         _ => String::new(),
     }

@@ -9,15 +9,19 @@
 //! back bit for bit ([`lssi_device::wire::model_from_snapshot`]) and goes through
 //! [`identify::report`], so the terms and coefficients are those of `lssi identify --f32`.
 
-use lssi_core::Config;
+use lssi_core::{Config, SystemConfig};
+use lssi_device::system::{system_config_to_wire, system_model_from_snapshot};
 use lssi_device::wire::{config_to_wire, fits, model_from_snapshot};
-use lssi_proto::{ModelSnapshot, NakReason, SampleEncoding, WireConfig, WireSample};
+use lssi_proto::{
+    ModelSnapshot, NakReason, SampleEncoding, SystemWireSample, WireConfig, WireDuty, WireSample,
+};
 use serde::Serialize;
 
 use crate::identify::{self, Report, TERM_CAPACITY};
 use crate::recording::Recording;
-use crate::serial::link::{F32Samples, Link, LinkError, LinkStats};
+use crate::serial::link::{F32Samples, Link, LinkError, LinkStats, SystemSamples};
 use crate::serial::quantise::{Quantisation, Quantised};
+use crate::system::{SystemData, SystemReport};
 
 /// What `lssi replay --json` prints: `lssi identify --json`'s object plus `"link"`.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -41,6 +45,9 @@ pub struct ReplayMode<'a> {
     /// Continue a replay the device has begun, from the last sample it applied, without
     /// configuring it again.
     pub resume: bool,
+    /// The duty cycle sent in the configuration (a standalone device's; one the host feeds
+    /// ignores it).
+    pub duty: Option<WireDuty>,
 }
 
 /// Why a replay failed.
@@ -123,6 +130,7 @@ pub fn replay_over_with(
 ) -> Result<ReplayReport, ReplayError> {
     let file = recording.path.display().to_string();
     let mut wire = wire_config(recording, config)?;
+    wire.duty = mode.duty;
     if let Some(quantised) = mode.quantised {
         wire.encoding = SampleEncoding::I16(quantised.encoding);
     }
@@ -186,6 +194,207 @@ pub fn replay_over_with(
         link: *link.stats(),
         quantisation: mode.quantised.map(|q| q.summary.clone()),
     })
+}
+
+/// What `lssi replay --json` prints for a system: `lssi identify --json`'s object for the
+/// system plus `"link"`.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SystemReplayReport {
+    /// The device's equations, reported as `lssi identify` reports its own.
+    #[serde(flatten)]
+    pub report: SystemReport,
+    /// The link's counters.
+    pub link: LinkStats,
+}
+
+/// A system's samples as they cross the link: `t` exact, every channel rounded to f32 as
+/// `lssi identify --f32` rounds them.
+pub fn system_wire_samples(data: &SystemData) -> Vec<SystemWireSample> {
+    let r = &data.recording;
+    (0..r.len())
+        .map(|i| SystemWireSample {
+            t: r.t[i],
+            x: r.x[i] as f32,
+            v: r.v.as_ref().map(|v| v[i] as f32),
+            u: r.u.as_ref().map(|u| u[i] as f32),
+            electrical: data
+                .electrical
+                .iter()
+                .take(lssi_proto::MAX_ELECTRICAL)
+                .map(|e| e.values[i] as f32)
+                .collect(),
+        })
+        .collect()
+}
+
+/// Hello, `ConfigureSystem`, stream the system's samples, query: the device's equations as
+/// `lssi identify --f32` reports a system (standard errors computed on the host from the
+/// same data and the device's selected terms).
+///
+/// The device's snapshot carries each equation's selected solution only (not the whole
+/// sweep: a frame holds three equations' coefficients but not their 32 candidates each), so
+/// the report's `solutions` lists that one, `selected` 0.
+pub fn replay_system_over(
+    link: &mut Link<'_>,
+    data: &SystemData,
+    config: &SystemConfig,
+    omega_estimated: bool,
+    mode: ReplayMode<'_>,
+) -> Result<SystemReplayReport, ReplayError> {
+    let file = data.recording.path.display().to_string();
+    let mut wire =
+        system_config_to_wire(config).map_err(|e| ReplayError::Input(format!("{file}: {e}.")))?;
+    wire.base.duty = mode.duty;
+    let info = link.hello()?;
+    fits(&config.base, info.window_capacity, info.max_terms).map_err(|e| {
+        ReplayError::Input(format!(
+            "{file}: {e} ({}), so it cannot identify this recording with these flags; try a lower --poly-order or --harmonics.",
+            link.port()
+        ))
+    })?;
+    let configured = if mode.resume {
+        Ok(())
+    } else {
+        link.configure_system(&wire)
+    };
+    configured.map_err(|e| match e {
+        LinkError::Refused {
+            port,
+            reason: NakReason::Decode,
+            ..
+        } => ReplayError::Input(format!(
+            "{file}: the device ({port}) does not take a system of equations (it did not decode ConfigureSystem): flash a firmware built with its `system` feature, or replay a recording without an electrical column."
+        )),
+        LinkError::Refused {
+            port,
+            reason: NakReason::TooManyTerms { terms, capacity },
+            ..
+        } => ReplayError::Input(format!(
+            "{file}: the device ({port}) holds at most {capacity} library terms, and this system's shared library has {terms}; try a lower --poly-order, --harmonics or --coupling-order."
+        )),
+        LinkError::Refused {
+            port,
+            reason: NakReason::BadConfig,
+            ..
+        } => ReplayError::Input(format!(
+            "{file}: the device ({port}) refused the system's configuration: its channels (x, {}{}the electrical ones) or its window do not fit the device's ring buffers; drop the v or u column from the file or flash a firmware with more channels.",
+            if data.recording.v.is_some() { "v, " } else { "" },
+            if data.recording.u.is_some() { "u, " } else { "" },
+        )),
+        e => e.into(),
+    })?;
+    let samples = system_wire_samples(data);
+    let (from, first_seq) = if mode.resume {
+        let (applied, next) = link.position_of(true)?;
+        (usize::try_from(applied).unwrap_or(usize::MAX), next)
+    } else {
+        (0, 0)
+    };
+    if from > samples.len() {
+        return Err(ReplayError::Input(format!(
+            "{file}: the device ({}) has applied {from} samples, more than the recording's {}, so it is not replaying this recording; replay without --resume.",
+            link.port(),
+            samples.len()
+        )));
+    }
+    link.stream_from(&SystemSamples(&samples), from, first_seq)?;
+    let (snapshot, health) = link.query_system()?;
+    let snapshot = snapshot.ok_or_else(|| {
+        ReplayError::Input(format!(
+            "{file}: no model: the device accepted {} samples and rejected {}, too few regression rows for the system's library.",
+            health.samples, health.rejected
+        ))
+    })?;
+    let model =
+        system_model_from_snapshot::<{ crate::system::TERM_CAPACITY }>(&snapshot).map_err(|e| {
+            ReplayError::Input(format!(
+                "{}: the device's model cannot be read: {e}.",
+                link.port()
+            ))
+        })?;
+    let mut report = SystemReport::of(&model, config, omega_estimated, model.rejected, "f32", data);
+    crate::system::report::add_standard_errors(&mut report, data);
+    link.log_summary()?;
+    Ok(SystemReplayReport {
+        report,
+        link: *link.stats(),
+    })
+}
+
+/// A recording's rows averaged `k` at a time (the last incomplete group dropped): what a
+/// device whose ADC converts at the recording's rate delivers at a row rate `k` times lower
+/// through a first-order CIC (the STM32L4's oversampler, `lssi_device::decimate` of order 1).
+/// Every column is averaged, t too (a row stands for the middle of its conversions).
+pub fn average_rows(values: &[f64], k: usize) -> Vec<f64> {
+    let k = k.max(1);
+    values
+        .chunks_exact(k)
+        .map(|c| c.iter().sum::<f64>() / k as f64)
+        .collect()
+}
+
+/// The recording at `k` times fewer rows ([`average_rows`] on every channel).
+pub fn decimate_recording(recording: &Recording, k: usize) -> Recording {
+    if k <= 1 {
+        return recording.clone();
+    }
+    Recording {
+        path: recording.path.clone(),
+        t: average_rows(&recording.t, k),
+        x: average_rows(&recording.x, k),
+        v: recording.v.as_ref().map(|v| average_rows(v, k)),
+        u: recording.u.as_ref().map(|u| average_rows(u, k)),
+        columns: recording.columns.clone(),
+    }
+}
+
+/// A system's recording at `k` times fewer rows, the electrical channels too.
+pub fn decimate_system(data: &SystemData, k: usize) -> SystemData {
+    let mut out = data.clone();
+    if k > 1 {
+        out.recording = decimate_recording(&data.recording, k);
+        for e in &mut out.electrical {
+            e.values = average_rows(&e.values, k);
+        }
+    }
+    out
+}
+
+/// The whole number of a recording's rows a row at `row_rate` Hz averages, for a recording
+/// sampled every `sample_period` seconds; or the sentence saying why there is none.
+pub fn rows_per_row(file: &str, sample_period: f64, row_rate: f64) -> Result<usize, String> {
+    let own = 1.0 / sample_period;
+    if !(row_rate.is_finite() && row_rate > 0.0) {
+        return Err(format!(
+            "--row-rate {row_rate}: the row rate must be a positive number of rows a second."
+        ));
+    }
+    if row_rate > own * 1.001 {
+        return Err(format!(
+            "{file}: --row-rate {row_rate} Hz is faster than the recording's {} samples a second, and a replay cannot make rows it has not got; give {} or less (its rate divided by a whole number).",
+            short(own),
+            short(own)
+        ));
+    }
+    match lssi_device::decimate::factor_for(own, 1.0 / row_rate) {
+        Some(k) => Ok(k as usize),
+        None => {
+            let k = (own / row_rate).floor().clamp(1.0, 255.0);
+            Err(format!(
+                "{file}: --row-rate {row_rate} Hz is not the recording's {} Hz divided by a whole number from 1 to {}, so rows cannot average whole samples; try {} or {} Hz.",
+                short(own),
+                lssi_device::decimate::MAX_FACTOR,
+                short(own / k),
+                short(own / (k + 1.0))
+            ))
+        }
+    }
+}
+
+/// A rate in Hz, shortly.
+fn short(hz: f64) -> String {
+    let rounded = (hz * 1000.0).round() / 1000.0;
+    format!("{rounded}")
 }
 
 /// The link line of the human output.

@@ -14,7 +14,11 @@ use crate::recording::{ColumnNames, Recording};
 use crate::serial::device::{DeviceProcess, SimOptions};
 use crate::serial::link::{Link, LinkError, LinkOptions, LinkStats, Observer};
 use crate::serial::quantise::{Quantised, quantise};
-use crate::serial::replay::{ReplayError, ReplayMode, ReplayReport, replay_over_with, wire_config};
+use crate::serial::replay::{
+    ReplayError, ReplayMode, ReplayReport, SystemReplayReport, decimate_recording, decimate_system,
+    replay_over_with, replay_system_over, rows_per_row, wire_config,
+};
+use crate::system::SystemData;
 use crate::telemetry::defmt::{DefmtLines, Tables};
 use crate::telemetry::{RecordKind, TelemetryLog};
 
@@ -56,6 +60,11 @@ pub struct Setup {
     /// Continue a replay the device has begun (`--resume`): no Configure, the samples from
     /// the device's count on.
     pub resume: bool,
+    /// The row rate (`--row-rate`): the recording's rows averaged down to it (`None`: its
+    /// own rate).
+    pub row_rate: Option<f64>,
+    /// The duty cycle sent in the configuration (`--duty-window`, `--duty-interval`).
+    pub duty: Option<lssi_proto::WireDuty>,
 }
 
 /// Shows progress on a terminal and prints the device's log lines.
@@ -101,20 +110,17 @@ impl Observer for Watcher {
 
 /// Replays as `setup` says and returns the report (what `lssi replay` prints).
 pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
-    let qemu = matches!(setup.device, Device::Qemu(_));
-    let elf = setup.elf.clone().or_else(|| match &setup.device {
-        Device::Qemu(firmware) => Some(firmware.clone()),
-        _ => None,
-    });
-    let tables = match &elf {
-        Some(path) if !qemu || path.is_file() => {
-            Some(Tables::load(path).map_err(|e| CliError::Input(format!("{e}."))))
-        }
-        _ => None,
-    }
-    .transpose()?;
-
     let recording = Recording::read(&setup.file, &setup.columns)?;
+    // The row rate: the recording's rows averaged down to it (none by default).
+    let recording = match setup.row_rate {
+        Some(rate) => {
+            let (own, _) = identify::configure(&recording, &setup.options)?;
+            let k = rows_per_row(&setup.file.display().to_string(), own.sample_period, rate)
+                .map_err(CliError::Input)?;
+            decimate_recording(&recording, k)
+        }
+        None => recording,
+    };
     // The compact encoding's quantisation is part of the recording: configured, streamed
     // and reported as the quantised recording (what `lssi identify --quantise i16` reads).
     let quantised: Option<Quantised> = if setup.quantise {
@@ -127,7 +133,113 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         None => recording,
     };
     let (config, estimated) = identify::configure(&recording, &setup.options)?;
-    let wire = wire_config(&recording, &config)?;
+    let mut wire = wire_config(&recording, &config)?;
+    wire.duty = setup.duty;
+    let session = serde_json::json!({
+        "tool": "lssi replay",
+        "version": env!("CARGO_PKG_VERSION"),
+        "input": setup.file.display().to_string(),
+        "encoding": if setup.quantise { "i16" } else { "f32" },
+        "resume": setup.resume,
+        "omega_estimated": estimated,
+        "samples": recording.len(),
+        "row_rate_hz": 1.0 / config.sample_period,
+        "config": wire,
+    });
+    with_link(setup, recording.len(), session, |link| {
+        let mode = ReplayMode {
+            quantised: quantised.as_ref(),
+            resume: setup.resume,
+            duty: setup.duty,
+        };
+        replay_over_with(link, &recording, &config, estimated, mode)
+    })
+}
+
+/// Replays a system's recording (one with an electrical column) as `setup` says:
+/// `ConfigureSystem`, `SystemSamples`, the device's equations reported as `lssi identify
+/// --f32` reports the system.
+pub fn replay_system(
+    setup: &Setup,
+    data: &SystemData,
+    coupling_order: u8,
+    load_ohms: Option<f64>,
+) -> Result<SystemReplayReport, CliError> {
+    let file = setup.file.display().to_string();
+    if setup.quantise {
+        return Err(CliError::Input(format!(
+            "{file}: --encoding i16 is for one equation's samples; a system's (with its electrical channel) travel as f32, so leave --encoding out."
+        )));
+    }
+    let data = match setup.row_rate {
+        Some(rate) => {
+            let (own, _) = crate::system::configure(data, &setup.options, coupling_order)?;
+            let k = rows_per_row(&file, own.base.sample_period, rate).map_err(CliError::Input)?;
+            decimate_system(data, k)
+        }
+        None => data.clone(),
+    };
+    let (config, estimated) = crate::system::configure(&data, &setup.options, coupling_order)?;
+    let mut wire = lssi_device::system::system_config_to_wire(&config)
+        .map_err(|e| CliError::Input(format!("{file}: {e}.")))?;
+    wire.base.duty = setup.duty;
+    let session = serde_json::json!({
+        "tool": "lssi replay",
+        "version": env!("CARGO_PKG_VERSION"),
+        "input": file,
+        "encoding": "f32",
+        "resume": setup.resume,
+        "omega_estimated": estimated,
+        "samples": data.recording.len(),
+        "row_rate_hz": 1.0 / config.base.sample_period,
+        "config": wire.base,
+        "system": {
+            "electrical": data.electrical.iter().map(|e| e.kind.symbol()).collect::<Vec<_>>(),
+            "coupling_order": config.coupling_order,
+        },
+    });
+    with_link(setup, data.recording.len(), session, |link| {
+        let mode = ReplayMode {
+            quantised: None,
+            resume: setup.resume,
+            duty: setup.duty,
+        };
+        replay_system_over(link, &data, &config, estimated, mode)
+    })
+    .map(|mut replayed| {
+        if let Some(ohms) = load_ohms {
+            replayed.report.harvester = Some(crate::system::power::harvester(
+                &replayed.report,
+                &data,
+                ohms,
+            ));
+        }
+        replayed
+    })
+}
+
+/// Opens the telemetry log, starts the device, opens the link and runs `body` over it; the
+/// device process is stopped and its last words noted in the log whatever `body` did.
+/// `session` is the log's session record (the device's kind, port, baud and faults are
+/// added here).
+fn with_link<T>(
+    setup: &Setup,
+    samples: usize,
+    mut session: serde_json::Value,
+    body: impl FnOnce(&mut Link<'_>) -> Result<T, ReplayError>,
+) -> Result<T, CliError> {
+    let qemu = matches!(setup.device, Device::Qemu(_));
+    let elf = setup.elf.clone().or_else(|| match &setup.device {
+        Device::Qemu(firmware) => Some(firmware.clone()),
+        _ => None,
+    });
+    let tables = match &elf {
+        Some(path) if !qemu || path.is_file() => {
+            Some(Tables::load(path).map_err(|e| CliError::Input(format!("{e}."))))
+        }
+        _ => None,
+    }
+    .transpose()?;
 
     let log_path = &setup.log;
     let mut log = TelemetryLog::open(log_path).map_err(|e| {
@@ -158,20 +270,15 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         Device::Qemu(_) => "qemu",
         Device::FirmwareSim => "firmware-sim",
     };
-    let session = serde_json::json!({
-        "tool": "lssi replay",
-        "version": env!("CARGO_PKG_VERSION"),
-        "input": setup.file.display().to_string(),
-        "device": kind,
-        "port": port_name,
-        "baud": setup.sim.baud,
-        "faults": {"flip_rate": setup.sim.flip_rate, "drop_rate": setup.sim.drop_rate, "burst": setup.sim.burst, "seed": setup.sim.seed},
-        "encoding": if setup.quantise { "i16" } else { "f32" },
-        "resume": setup.resume,
-        "omega_estimated": estimated,
-        "samples": recording.len(),
-        "config": wire,
-    });
+    if let Some(object) = session.as_object_mut() {
+        object.insert("device".into(), kind.into());
+        object.insert("port".into(), port_name.clone().into());
+        object.insert("baud".into(), setup.sim.baud.into());
+        object.insert(
+            "faults".into(),
+            serde_json::json!({"flip_rate": setup.sim.flip_rate, "drop_rate": setup.sim.drop_rate, "burst": setup.sim.burst, "seed": setup.sim.seed}),
+        );
+    }
     log.append(RecordKind::Session, session.to_string().as_bytes())
         .map_err(|e| log_write_error(log_path, e))?;
 
@@ -186,7 +293,7 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
     })?;
 
     let bar = if setup.progress {
-        ProgressBar::with_draw_target(Some(recording.len() as u64), ProgressDrawTarget::stderr())
+        ProgressBar::with_draw_target(Some(samples as u64), ProgressDrawTarget::stderr())
     } else {
         ProgressBar::hidden()
     };
@@ -212,11 +319,7 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
         if let Some(stdout) = qemu_stdout {
             link.attach_defmt(Box::new(stdout));
         }
-        let mode = ReplayMode {
-            quantised: quantised.as_ref(),
-            resume: setup.resume,
-        };
-        let result = replay_over_with(&mut link, &recording, &config, estimated, mode);
+        let result = body(&mut link);
         if let Err(error) = &result {
             let _ = link.note(&format!("replay stopped: {error}"));
         }
@@ -257,6 +360,7 @@ fn replay_error(error: ReplayError, device: &Device) -> CliError {
             byte_error_rate,
             acked,
             samples,
+            ..
         }) => {
             let measured = if frame_loss > 0.0 || byte_error_rate > 0.0 {
                 format!(

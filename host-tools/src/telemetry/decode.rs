@@ -235,6 +235,7 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             latency_max_ns,
             screenings_skipped,
             sample_rate_hz,
+            drift,
         } => json!({
             "kind": "health",
             "samples": samples,
@@ -256,6 +257,7 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             "latency_max_ns": latency_max_ns,
             "screenings_skipped": screenings_skipped,
             "sample_rate_hz": sample_rate_hz,
+            "drift": drift.map(|d| drift_json(&d)),
         }),
         DeviceMsg::Log { bytes } => json!({ "kind": "log", "bytes": hex(bytes) }),
         DeviceMsg::ModelPart(part) => json!({
@@ -351,9 +353,11 @@ pub fn render_text(entries: &[Entry]) -> String {
                     cost_max,
                     cost_unit,
                     screenings,
+                    drift,
                     ..
                 } => out.push_str(&format!(
-                    "{at}health: {samples} samples ({rejected} rejected), {screenings} screenings, {frames_ok} frames ok, {crc_errors} CRC errors, {duplicates} duplicates, cost {cost_mean} mean / {cost_max} max {cost_unit:?}\n"
+                    "{at}health: {samples} samples ({rejected} rejected), {screenings} screenings, {frames_ok} frames ok, {crc_errors} CRC errors, {duplicates} duplicates, cost {cost_mean} mean / {cost_max} max {cost_unit:?}{}\n",
+                    drift.map(|d| format!(", {}", drift_text(&d))).unwrap_or_default()
                 )),
                 DeviceMsg::Log { bytes } => out.push_str(&format!("{at}device: {}\n", hex(bytes))),
                 DeviceMsg::ModelPart(part) => out.push_str(&format!(
@@ -419,7 +423,13 @@ pub fn csv_rows(entries: &[Entry]) -> Vec<[String; 5]> {
             Event::Message(message @ DeviceMsg::Health { .. }) => {
                 if let Value::Object(map) = message_json(message, &session) {
                     for (field, value) in map {
-                        if field != "kind" {
+                        if let Value::Object(drift) = &value {
+                            // The drift's figures, a row each (none without a duty cycle).
+                            for (name, figure) in drift {
+                                row("health", &format!("{field}_{name}"), figure.to_string());
+                            }
+                        } else if field == "drift" {
+                        } else if field != "kind" {
                             let text = match value {
                                 Value::String(s) => s,
                                 other => other.to_string(),
@@ -435,4 +445,29 @@ pub fn csv_rows(entries: &[Entry]) -> Vec<[String; 5]> {
         }
     }
     rows
+}
+
+/// A duty cycle's drift as `lssi log --json` and `lssi monitor --json` give it.
+pub fn drift_json(drift: &lssi_proto::WireDrift) -> Value {
+    json!({
+        "windows": drift.windows,
+        "relative": drift.relative,
+        "largest": drift.largest,
+        "largest_term": drift.largest_term,
+        "support_changes": drift.support_changes,
+    })
+}
+
+/// A duty cycle's drift in words: "drift over window 3: coefficients moved 2.1 % (RMS), at
+/// most 7.5 % (term 4), 1 term in or out".
+pub fn drift_text(drift: &lssi_proto::WireDrift) -> String {
+    format!(
+        "drift over window {}: coefficients moved {:.2} % (RMS), at most {:.2} % (term {}), {} term{} in or out",
+        drift.windows,
+        100.0 * f64::from(drift.relative),
+        100.0 * f64::from(drift.largest),
+        drift.largest_term,
+        drift.support_changes,
+        if drift.support_changes == 1 { "" } else { "s" }
+    )
 }

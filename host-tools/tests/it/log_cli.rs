@@ -72,6 +72,7 @@ fn health(samples: u64) -> DeviceMsg {
         latency_max_ns: 0,
         screenings_skipped: 0,
         sample_rate_hz: 0.0,
+        drift: None,
     }
 }
 
@@ -312,4 +313,90 @@ fn bad_logs_are_one_sentence_and_exit_2() {
             .map(str::to_owned)
     };
     assert_eq!(last(&damaged), last(&intact));
+}
+
+/// A duty-cycled device's Health carries the drift between its windows (protocol 7):
+/// `lssi log` prints it in words, `--json` as an object, `--csv` a row per figure; a
+/// Health without one (a host-fed device) prints none.
+#[test]
+fn the_drift_of_a_duty_cycle_is_printed_in_text_json_and_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("duty.tlm");
+    let mut log = TelemetryLog::open(&path).unwrap();
+    let session = serde_json::json!({"tool": "lssi monitor", "source": "/dev/ttyACM0"});
+    log.append(RecordKind::Session, session.to_string().as_bytes())
+        .unwrap();
+    let drifts = [
+        (1, 0.0, 0.0, 0, 0),
+        (2, 0.0125, 0.031, 2, 0),
+        (3, 0.2, 1.0, 4, 1),
+    ];
+    log.append(RecordKind::Frame, &frame(&health(10))).unwrap();
+    for (k, &(windows, relative, largest, largest_term, support_changes)) in
+        drifts.iter().enumerate()
+    {
+        let mut h = health(1000 * (k as u64 + 1));
+        if let DeviceMsg::Health { drift, .. } = &mut h {
+            *drift = Some(lssi_proto::WireDrift {
+                windows,
+                relative,
+                largest,
+                largest_term,
+                support_changes,
+            });
+        }
+        log.append(RecordKind::Frame, &frame(&h)).unwrap();
+    }
+    drop(log);
+    let file = path.to_str().unwrap();
+
+    let out = lssi(&["log", file]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let health_lines: Vec<&str> = text.lines().filter(|l| l.contains("health:")).collect();
+    assert_eq!(health_lines.len(), 4, "{text}");
+    assert!(!health_lines[0].contains("drift"), "{text}");
+    assert!(
+        health_lines[2].contains(
+            "drift over window 2: coefficients moved 1.25 % (RMS), at most 3.10 % (term 2), 0 terms in or out"
+        ),
+        "{text}"
+    );
+    assert!(
+        health_lines[3].contains("at most 100.00 % (term 4), 1 term in or out"),
+        "{text}"
+    );
+
+    let out = lssi(&["log", "--json", file]);
+    assert!(out.status.success());
+    let healths: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["kind"] == "health")
+        .collect();
+    assert_eq!(healths.len(), 4);
+    assert!(healths[0]["drift"].is_null());
+    for (h, &(windows, relative, largest, term, changes)) in healths[1..].iter().zip(&drifts) {
+        assert_eq!(h["drift"]["windows"], windows);
+        assert_eq!(h["drift"]["relative"].as_f64().unwrap() as f32, relative);
+        assert_eq!(h["drift"]["largest"].as_f64().unwrap() as f32, largest);
+        assert_eq!(h["drift"]["largest_term"], term);
+        assert_eq!(h["drift"]["support_changes"], changes);
+    }
+
+    let out = lssi(&["log", "--csv", file]);
+    assert!(out.status.success());
+    let csv = String::from_utf8(out.stdout).unwrap();
+    let windows: Vec<&str> = csv
+        .lines()
+        .filter(|l| l.contains(",health,drift_windows,"))
+        .collect();
+    assert_eq!(windows.len(), 3, "{csv}");
+    assert!(windows[2].ends_with(",3"), "{csv}");
+    assert!(!csv.contains(",health,drift,"), "{csv}");
 }

@@ -24,7 +24,7 @@ fn bundled() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/paper-eq17.csv")
 }
 
-fn require_firmware_sim() {
+pub(crate) fn require_firmware_sim() {
     let next_to_lssi = Path::new(env!("CARGO_BIN_EXE_lssi")).with_file_name("firmware-sim");
     assert!(
         next_to_lssi.is_file() || std::env::var_os("LSSI_FIRMWARE_SIM").is_some(),

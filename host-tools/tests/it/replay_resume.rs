@@ -152,6 +152,7 @@ fn a_resumed_replay_continues_from_the_last_applied_sample_and_gives_the_whole_m
         let mode = ReplayMode {
             quantised: Some(&quantised),
             resume: true,
+            duty: None,
         };
         replay_over_with(&mut link, &quantised.recording, &config, estimated, mode).unwrap()
     };
@@ -201,6 +202,7 @@ fn a_line_no_batch_crosses_ends_at_the_deadline_saying_what_was_measured() {
         let mode = ReplayMode {
             quantised: Some(&quantised),
             resume: false,
+            duty: None,
         };
         replay_over_with(&mut link, &quantised.recording, &config, estimated, mode)
     };
@@ -234,4 +236,59 @@ fn a_line_no_batch_crosses_ends_at_the_deadline_saying_what_was_measured() {
         text.contains("lssi replay --resume --port socket"),
         "{text}"
     );
+}
+
+/// `--port` and a deadline before the stream began (the device answers Hello, never its
+/// Configure): one sentence that says no sample was sent, not a frame loss of 0 % and
+/// "0 of 0 samples" with advice to resume a stream that never began.
+#[test]
+fn a_deadline_before_any_sample_says_nothing_was_streamed() {
+    let recording = Recording::read(bundled(), &ColumnNames::default()).unwrap();
+    let (config, estimated) = identify::configure(&recording, &Options::default()).unwrap();
+    let (host, far) = UnixStream::pair().unwrap();
+    // Configure (discriminant 1) never reaches the device.
+    let device = device(far, |frame| frame.get(1) == Some(&1));
+    host.set_read_timeout(Some(Duration::from_millis(20)))
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut log = TelemetryLog::open(dir.path().join("replay.tlm")).unwrap();
+    let mut quiet = Quiet;
+    let mut options = options();
+    options.deadline = Duration::from_secs(1);
+    let result = {
+        let mut link = Link::new(
+            "/dev/ttyACM7",
+            Box::new(host.try_clone().unwrap()),
+            Box::new(host.try_clone().unwrap()),
+            &mut log,
+            &mut quiet,
+            options,
+        );
+        replay_over_with(
+            &mut link,
+            &recording,
+            &config,
+            estimated,
+            ReplayMode::default(),
+        )
+    };
+    host.shutdown(std::net::Shutdown::Both).unwrap();
+    device.join().unwrap();
+    let error = match result {
+        Err(ReplayError::Link(error @ LinkError::Deadline { sent: 0, .. })) => error,
+        other => panic!("expected the deadline before any sample, got {other:?}"),
+    };
+    let text = error.to_string();
+    assert!(text.starts_with("/dev/ttyACM7: the host waited "), "{text}");
+    assert!(
+        text.contains("for the answer to Configure and none came"),
+        "{text}"
+    );
+    assert!(text.contains("before sending a single sample"), "{text}");
+    assert!(!text.contains("--resume"), "{text}");
+    assert!(!text.contains("were lost"), "{text}");
+    assert!(!text.contains(". "), "one sentence: {text}");
+    // `lssi` prints it with a full stop: `ReplayError` adds it.
+    let cli = ReplayError::Link(error).to_string();
+    assert!(cli.ends_with("run the same command again."), "{cli}");
 }

@@ -483,6 +483,19 @@ fn duty_cycled_windows_report_once_each_and_go_on_from_the_kept_model() {
     assert_eq!((models, healths), (9, 9));
     // The first window has nothing to compare with.
     assert_eq!(reports[0].1.relative, 0.0);
+    // Each window's Health carries its drift (protocol version 7), as the reporter has it.
+    let carried: Vec<_> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { drift, .. } => Some(*drift),
+            _ => None,
+        })
+        .collect();
+    let expected: Vec<_> = reports
+        .iter()
+        .map(|(_, d)| Some(lssi_device::wire::drift_to_wire(d)))
+        .collect();
+    assert_eq!(carried, expected);
 }
 
 #[test]

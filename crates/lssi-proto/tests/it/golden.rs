@@ -20,14 +20,20 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 6, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 7, "update the README's worked examples");
+    assert_eq!(
+        frame(&HostMsg::Hello {
+            protocol_version: 7
+        }),
+        [0x01, 0x06, 0x07, 0x39, 0x13, 0xAB, 0x25, 0x00]
+    );
+    // Version-6 and -5 hosts' Hellos still read as such (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 6
         }),
         [0x01, 0x06, 0x06, 0x3A, 0x90, 0xC0, 0xD7, 0x00]
     );
-    // A version-5 host's Hello still reads as one (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 5

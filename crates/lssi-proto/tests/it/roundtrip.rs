@@ -314,3 +314,67 @@ proptest! {
         prop_assert_eq!(frame(&decoded), bytes);
     }
 }
+
+/// A version-6 Health: every field of version 7's but `drift`.
+fn version_6_health_payload() -> Vec<u8> {
+    let mut payload = vec![0x04];
+    // samples, rejected, buffer_fill, cost_mean, cost_max, cost_unit (Cycles = 1), watchdog,
+    // crc_errors, frames_ok, screen_cost, screen_cost_max, screenings, duplicates,
+    // decode_errors, overruns, queue_high_water, latency_max_ns, screenings_skipped.
+    payload.extend_from_slice(&[100, 0, 33, 40, 50, 1, 7, 0, 9, 60, 70, 2, 0, 0, 0, 3, 80, 0]);
+    payload.extend_from_slice(&200.0f32.to_le_bytes());
+    payload
+}
+
+#[test]
+fn health_carries_the_drift_since_version_7_and_a_version_6_peer_is_refused() {
+    let drift = lssi_proto::WireDrift {
+        windows: 12,
+        relative: 0.031,
+        largest: 0.12,
+        largest_term: 3,
+        support_changes: 1,
+    };
+    let DeviceMsg::Health { .. } = &worst_device_msgs()[4] else {
+        panic!("the worst messages' fifth is Health");
+    };
+    let mut health = worst_device_msgs()[4].clone();
+    if let DeviceMsg::Health { drift: d, .. } = &mut health {
+        *d = Some(drift);
+    }
+    assert_eq!(round_trip_device(&health), health);
+    if let DeviceMsg::Health { drift: d, .. } = &mut health {
+        *d = None;
+    }
+    assert_eq!(round_trip_device(&health), health);
+
+    // Version 7's Health is version 6's and the drift: a version-6 Health does not decode
+    // (one byte short), and with `None` appended it does.
+    let old = version_6_health_payload();
+    assert_eq!(
+        decode_frame::<DeviceMsg>(&mut frame_payload(&old)),
+        Err(Error::Decode)
+    );
+    let mut new = old.clone();
+    new.push(0x00);
+    let decoded = decode_frame::<DeviceMsg>(&mut frame_payload(&new)).expect("decodes");
+    assert!(matches!(
+        decoded,
+        DeviceMsg::Health {
+            samples: 100,
+            sample_rate_hz: 200.0,
+            drift: None,
+            ..
+        }
+    ));
+    // So a version-6 device is refused at its HelloReply, with a sentence naming both
+    // versions, before any Health of it is read.
+    assert_eq!(PROTOCOL_VERSION, 7);
+    let mut reply = frame_payload(&[0x00, 6, 16, 0x80, 0x02, 24]);
+    let error = decode_frame::<DeviceMsg>(&mut reply).expect_err("refused");
+    assert_eq!(error, Error::VersionMismatch { ours: 7, theirs: 6 });
+    assert_eq!(
+        error.to_string(),
+        "the peer speaks lssi protocol version 6, but this build speaks version 7"
+    );
+}

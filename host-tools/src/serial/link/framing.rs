@@ -8,7 +8,10 @@ use std::sync::mpsc::{self, Receiver};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use lssi_proto::{Channels, HostMsg, MAX_DEVICE_FRAME_LEN, SampleBatch, WireSample, encode};
+use lssi_proto::{
+    Channels, HostMsg, MAX_DEVICE_FRAME_LEN, MAX_SYSTEM_BATCH, SampleBatch, SystemBatch,
+    SystemWireSample, WireSample, encode,
+};
 
 use crate::telemetry::now_us;
 
@@ -167,6 +170,45 @@ impl BatchSource for F32Samples<'_> {
             .get(from..(from + max).min(self.0.len()))
             .unwrap_or(&[]);
         (batch_frame(seq, chunk), chunk.len())
+    }
+}
+
+/// A system's samples (t, x, v, u and the electrical channels): [`HostMsg::SystemSamples`].
+#[derive(Clone, Copy, Debug)]
+pub struct SystemSamples<'a>(pub &'a [SystemWireSample]);
+
+impl BatchSource for SystemSamples<'_> {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    fn max_batch(&self) -> usize {
+        MAX_SYSTEM_BATCH
+    }
+
+    fn bytes_per_sample(&self) -> usize {
+        // t (8), x (4), v and u (1 or 5 each), the electrical values' count and 4 each.
+        self.0.first().map_or(13, |s| {
+            let option = |o: Option<f32>| if o.is_some() { 5 } else { 1 };
+            12 + option(s.v) + option(s.u) + 1 + 4 * s.electrical.len()
+        })
+    }
+
+    fn frame(&self, seq: u32, from: usize, max: usize) -> (Vec<u8>, usize) {
+        let max = max.clamp(1, MAX_SYSTEM_BATCH);
+        let chunk = self
+            .0
+            .get(from..(from + max).min(self.0.len()))
+            .unwrap_or(&[]);
+        let mut batch = SystemBatch::new(seq);
+        for sample in chunk {
+            // At most MAX_SYSTEM_BATCH samples: they fit.
+            let _ = batch.samples.push(sample.clone());
+        }
+        let mut frame = vec![0u8; lssi_proto::MAX_HOST_FRAME_LEN];
+        let len = encode(&HostMsg::SystemSamples(batch), &mut frame).unwrap_or(0);
+        frame.truncate(len);
+        (frame, chunk.len())
     }
 }
 

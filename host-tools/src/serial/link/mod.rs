@@ -32,7 +32,7 @@ use std::time::Duration;
 
 use lssi_proto::{ModelSnapshot, NakReason, PROTOCOL_VERSION};
 
-pub use framing::{BatchSource, F32Samples, batch_frame};
+pub use framing::{BatchSource, F32Samples, SystemSamples, batch_frame};
 pub use session::Link;
 
 /// How the link paces itself.
@@ -128,6 +128,10 @@ pub struct LinkStats {
     pub model_parts: u64,
     /// The smoothed round trip of a batch, in milliseconds (what the waits follow).
     pub round_trip_ms: f64,
+    /// How the device's coefficients moved between its last two duty-cycle windows, from its
+    /// last health report (protocol 7; `null` from a device the host feeds, which runs no
+    /// duty cycle).
+    pub drift: Option<lssi_proto::WireDrift>,
 }
 
 impl LinkStats {
@@ -185,7 +189,7 @@ pub struct DeviceInfo {
 }
 
 /// The device's health counters, as its last `Health` frame reported them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Health {
     /// Samples the identifier accepted.
     pub samples: u64,
@@ -199,6 +203,35 @@ pub struct Health {
     pub frames_ok: u32,
     /// Screenings it has run.
     pub screenings: u32,
+    /// Its duty cycle's drift (since protocol 7).
+    pub drift: Option<lssi_proto::WireDrift>,
+}
+
+impl Health {
+    /// The counters of a `Health` message (`None` for any other message).
+    pub fn of(message: &lssi_proto::DeviceMsg) -> Option<Self> {
+        match *message {
+            lssi_proto::DeviceMsg::Health {
+                samples,
+                rejected,
+                crc_errors,
+                duplicates,
+                frames_ok,
+                screenings,
+                drift,
+                ..
+            } => Some(Self {
+                samples,
+                rejected,
+                crc_errors,
+                duplicates,
+                frames_ok,
+                screenings,
+                drift,
+            }),
+            _ => None,
+        }
+    }
 }
 
 /// Why the link failed; each displays as one sentence naming the port.
@@ -269,12 +302,9 @@ pub enum LinkError {
         counted: u64,
     },
     /// No progress for the whole deadline: the line is too poor (or the device too slow).
-    #[error(
-        "{port}: no progress for {:.1} s while the host waited for {waiting_for}, so it gives up: {:.1} % of the frames it sent were lost (a byte error rate of about {:.2} %); the device had acknowledged {acked} of {samples} samples, and `lssi replay --resume --port {port}` continues from there",
-        .waited.as_secs_f64(),
-        100.0 * .frame_loss,
-        100.0 * .byte_error_rate
-    )]
+    /// Before any sample was sent (waiting for the answer to `Hello`, `Configure` or a
+    /// `Query`), it says so instead of a frame loss and a position nothing was measured for.
+    #[error("{}", deadline_text(.port, .waiting_for, *.waited, *.frame_loss, *.byte_error_rate, *.acked, *.samples, *.sent))]
     Deadline {
         /// The port.
         port: String,
@@ -290,6 +320,8 @@ pub enum LinkError {
         acked: u64,
         /// Samples in the recording.
         samples: u64,
+        /// Samples sent to the device by then (0: the stream had not begun).
+        sent: u64,
     },
     /// The telemetry log could not be written.
     #[error("{}: cannot append to the telemetry log: {source}", .path.display())]
@@ -299,6 +331,31 @@ pub enum LinkError {
         /// What the operating system said.
         source: io::Error,
     },
+}
+
+/// The sentence of [`LinkError::Deadline`].
+#[allow(clippy::too_many_arguments, reason = "the error's fields, one each")]
+fn deadline_text(
+    port: &str,
+    waiting_for: &str,
+    waited: Duration,
+    frame_loss: f64,
+    byte_error_rate: f64,
+    acked: u64,
+    samples: u64,
+    sent: u64,
+) -> String {
+    let waited = waited.as_secs_f64();
+    if sent == 0 {
+        return format!(
+            "{port}: the host waited {waited:.1} s for {waiting_for} and none came, so it gives up before sending a single sample (nothing was streamed); check that the device runs the lssi replay firmware at this baud rate, or give a slow one a longer --deadline, and run the same command again"
+        );
+    }
+    format!(
+        "{port}: no progress for {waited:.1} s while the host waited for {waiting_for}, so it gives up: {:.1} % of the frames it sent were lost (a byte error rate of about {:.2} %); the device had acknowledged {acked} of {samples} samples, and `lssi replay --resume --port {port}` continues from there",
+        100.0 * frame_loss,
+        100.0 * byte_error_rate
+    )
 }
 
 /// ` (detail)`, or nothing for no detail.

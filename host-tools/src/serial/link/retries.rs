@@ -235,6 +235,12 @@ impl Link<'_> {
     /// Health) and the sequence number it expects next (an empty batch numbered far ahead
     /// is naked `OutOfOrder` with it). What `lssi replay --resume` continues from.
     pub fn position(&mut self) -> Result<(u64, u32), LinkError> {
+        self.position_of(false)
+    }
+
+    /// [`Link::position`] of a device running a system (`system`: the probe is an empty
+    /// `SystemSamples` batch, which such a device takes; it naks a `Samples` one).
+    pub fn position_of(&mut self, system: bool) -> Result<(u64, u32), LinkError> {
         let port = self.port.clone();
         let refused = |reason: NakReason| LinkError::Refused {
             port: port.clone(),
@@ -255,7 +261,11 @@ impl Link<'_> {
                 _ => None,
             },
         )?;
-        let probe = HostMsg::Samples(SampleBatch::new(CONTROL_SEQ - 1, Channels::X));
+        let probe = if system {
+            HostMsg::SystemSamples(lssi_proto::SystemBatch::new(CONTROL_SEQ - 1))
+        } else {
+            HostMsg::Samples(SampleBatch::new(CONTROL_SEQ - 1, Channels::X))
+        };
         let next = self.command(
             &probe,
             "the device's next sequence number",

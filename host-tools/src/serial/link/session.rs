@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 
 use lssi_proto::{
     CONTROL_SEQ, DeviceMsg, HostMsg, MAX_FRAME_LEN, ModelSnapshot, NakReason, PROTOCOL_VERSION,
-    SnapshotCause, WireConfig, decode_frame, encode, snapshot_from_parts,
+    SnapshotCause, SystemSnapshot, WireConfig, WireSystemConfig, decode_frame, encode,
+    snapshot_from_parts,
 };
 
 use super::framing::{Incoming, Reader};
@@ -210,24 +211,7 @@ impl<'a> Link<'a> {
                         match &message {
                             DeviceMsg::Log { bytes } => self.observer.device_log(bytes),
                             DeviceMsg::Model(snapshot) => self.observer.model(snapshot),
-                            DeviceMsg::Health {
-                                samples,
-                                rejected,
-                                crc_errors,
-                                duplicates,
-                                frames_ok,
-                                screenings,
-                                ..
-                            } => {
-                                self.health = Some(Health {
-                                    samples: *samples,
-                                    rejected: *rejected,
-                                    crc_errors: *crc_errors,
-                                    duplicates: *duplicates,
-                                    frames_ok: *frames_ok,
-                                    screenings: *screenings,
-                                });
-                            }
+                            DeviceMsg::Health { .. } => self.health = Health::of(&message),
                             _ => {}
                         }
                         Ok(Some(Event::Message(message)))
@@ -340,6 +324,7 @@ impl<'a> Link<'a> {
             byte_error_rate,
             acked: self.stats.samples_acked,
             samples: self.stats.samples,
+            sent: self.stats.samples_sent,
         }
     }
 
@@ -402,6 +387,74 @@ impl<'a> Link<'a> {
                 _ => None,
             },
         )
+    }
+
+    /// Configures a system's identifier (`ConfigureSystem`); the device acks or refuses.
+    pub fn configure_system(&mut self, config: &WireSystemConfig) -> Result<(), LinkError> {
+        let port = self.port.clone();
+        self.command(
+            &HostMsg::ConfigureSystem(*config),
+            "the answer to ConfigureSystem",
+            |reply| match *reply {
+                DeviceMsg::Ack { seq: CONTROL_SEQ } => Some(Ok(())),
+                DeviceMsg::Nak {
+                    seq: CONTROL_SEQ,
+                    reason,
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the system's configuration",
+                    reason,
+                })),
+                // A device built without systems cannot decode the frame.
+                DeviceMsg::Nak {
+                    reason: NakReason::Decode,
+                    ..
+                } => Some(Err(LinkError::Refused {
+                    port: port.clone(),
+                    command: "the system's configuration",
+                    reason: NakReason::Decode,
+                })),
+                _ => None,
+            },
+        )
+    }
+
+    /// Asks for a system's model: the device screens and answers `SystemModel` (if it has
+    /// one) and `Health`. A system's model does not come in parts: when the Health reports
+    /// screenings but its SystemModel frame was damaged on the line, the query is sent again
+    /// (the device does not screen again without new samples, so the model is the same).
+    pub fn query_system(&mut self) -> Result<(Option<SystemSnapshot>, Health), LinkError> {
+        let mut last = None;
+        for _ in 0..8 {
+            let mut model = None;
+            let port = self.port.clone();
+            let health = self.command(
+                &HostMsg::Query,
+                "the system's model (the answer to Query)",
+                |reply| match reply {
+                    DeviceMsg::SystemModel(snapshot) if snapshot.cause == SnapshotCause::Query => {
+                        model = Some(snapshot.clone());
+                        None
+                    }
+                    DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
+                    DeviceMsg::Nak {
+                        seq: CONTROL_SEQ,
+                        reason,
+                    } => Some(Err(LinkError::Refused {
+                        port: port.clone(),
+                        command: "the query",
+                        reason: *reason,
+                    })),
+                    _ => None,
+                },
+            )?;
+            self.settle(&health)?;
+            if model.is_some() || health.screenings == 0 {
+                return Ok((model, health));
+            }
+            last = Some(health);
+        }
+        Ok((None, last.unwrap_or_default()))
     }
 
     /// Asks for the model: the device screens and answers `Model` (if it has one) and
@@ -480,22 +533,7 @@ impl<'a> Link<'a> {
                     model = Some(snapshot.clone());
                     None
                 }
-                DeviceMsg::Health {
-                    samples,
-                    rejected,
-                    crc_errors,
-                    duplicates,
-                    frames_ok,
-                    screenings,
-                    ..
-                } => Some(Ok(Health {
-                    samples: *samples,
-                    rejected: *rejected,
-                    crc_errors: *crc_errors,
-                    duplicates: *duplicates,
-                    frames_ok: *frames_ok,
-                    screenings: *screenings,
-                })),
+                DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
                 DeviceMsg::Nak {
                     seq: CONTROL_SEQ,
                     reason,
@@ -507,6 +545,12 @@ impl<'a> Link<'a> {
                 _ => None,
             },
         )?;
+        self.settle(&health)?;
+        Ok((model, health))
+    }
+
+    /// Settles the counters the device's health report at the end of a stream gives.
+    fn settle(&mut self, health: &Health) -> Result<(), LinkError> {
         let counted = health.samples + health.rejected;
         if counted > self.stats.samples {
             return Err(LinkError::Overcount {
@@ -517,9 +561,10 @@ impl<'a> Link<'a> {
         }
         self.stats.samples_lost = self.stats.samples - counted;
         self.stats.crc_errors = u64::from(health.crc_errors) + self.stats.rx_crc_errors;
-        self.stats.line_error_rate = self.stats.line_error_rate_of(&health);
+        self.stats.line_error_rate = self.stats.line_error_rate_of(health);
         self.stats.duplicates = u64::from(health.duplicates);
-        Ok((model, health))
+        self.stats.drift = health.drift;
+        Ok(())
     }
 
     /// Writes the link counters to the telemetry log as the session's summary.

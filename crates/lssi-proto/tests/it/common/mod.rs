@@ -235,6 +235,13 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                 any::<u32>(),
                 0.0f32..1.0e6
             ),
+            proptest::option::of((
+                any::<u32>(),
+                0.0f32..10.0,
+                0.0f32..10.0,
+                any::<u8>(),
+                any::<u8>()
+            )),
         )
             .prop_map(
                 |(
@@ -248,6 +255,7 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                         screenings_skipped,
                         sample_rate_hz,
                     ),
+                    drift,
                 )| DeviceMsg::Health {
                     samples,
                     rejected,
@@ -268,6 +276,17 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                     latency_max_ns,
                     screenings_skipped,
                     sample_rate_hz,
+                    drift: drift.map(
+                        |(windows, relative, largest, largest_term, support_changes)| {
+                            lssi_proto::WireDrift {
+                                windows,
+                                relative,
+                                largest,
+                                largest_term,
+                                support_changes,
+                            }
+                        }
+                    ),
                 },
             ),
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
@@ -438,6 +457,13 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
             latency_max_ns: u32::MAX,
             screenings_skipped: u32::MAX,
             sample_rate_hz: f32::MAX,
+            drift: Some(lssi_proto::WireDrift {
+                windows: u32::MAX,
+                relative: f32::MAX,
+                largest: f32::MAX,
+                largest_term: u8::MAX,
+                support_changes: u8::MAX,
+            }),
         },
         DeviceMsg::Log {
             bytes: core::iter::repeat_n(0xA5, MAX_LOG).collect(),
