@@ -492,7 +492,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             latency_max_ns: ticks_to_ns(c.latency_max.load(Ordering::Relaxed)),
             screenings_skipped: c.screenings_skipped.load(Ordering::Relaxed),
             sample_rate_hz: self.rate_hz,
-            drift: self.drift.as_ref().map(wire::drift_to_wire),
+            drift: self.drift.as_ref().map(crate::wire::drift_to_wire),
         }
     }
 
