@@ -262,10 +262,53 @@ struct Row<T, const E: usize> {
 }
 
 /// The warm-up rows, then the halves A and B (one memory: they never coexist).
-#[derive(Clone)]
 enum Store<T, const P: usize, const E: usize> {
     Warmup(heapless::Vec<Row<T, E>, WARMUP_ROWS>),
     Halves([MultiFactor<T, P, E>; 2]),
+}
+
+impl<T: Real, const P: usize, const E: usize> Clone for Store<T, P, E> {
+    fn clone(&self) -> Self {
+        match self {
+            Store::Warmup(rows) => Store::Warmup(rows.clone()),
+            Store::Halves(halves) => Store::Halves(halves.clone()),
+        }
+    }
+
+    /// In place (a snapshot's copy, in a device's identify interrupt): the derived one
+    /// builds the 2.5 KB copy on the stack first. Only a change of variant (once, at the
+    /// end of the warm-up) writes a whole new value, an empty one.
+    fn clone_from(&mut self, source: &Self) {
+        match source {
+            Store::Warmup(from) => {
+                if !matches!(self, Store::Warmup(_)) {
+                    *self = Store::Warmup(heapless::Vec::new());
+                }
+                if let Store::Warmup(rows) = self {
+                    rows.clear();
+                    // Same capacity: every row fits.
+                    let _ = rows.extend_from_slice(from);
+                }
+            }
+            Store::Halves([a, b]) => {
+                if !matches!(self, Store::Halves(_)) {
+                    self.become_halves(0, 0);
+                }
+                if let Store::Halves([to_a, to_b]) = self {
+                    to_a.clone_from(a);
+                    to_b.clone_from(b);
+                }
+            }
+        }
+    }
+}
+
+impl<T: Real, const P: usize, const E: usize> Store<T, P, E> {
+    /// Empty halves over `n` columns and `targets` equations, written in place.
+    #[inline(never)]
+    fn become_halves(&mut self, n: usize, targets: usize) {
+        *self = Store::Halves([MultiFactor::new(n, targets), MultiFactor::new(n, targets)]);
+    }
 }
 
 /// The streaming identifier of a system: `W` samples of window capacity, `P` terms of the
@@ -618,10 +661,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             self.set_scales(&rows);
             let n = self.library.len();
             let equations = 1 + self.electrical;
-            self.store = Store::Halves([
-                MultiFactor::new(n, equations),
-                MultiFactor::new(n, equations),
-            ]);
+            self.store.become_halves(n, equations);
             for r in rows.iter() {
                 self.fold(r);
             }
