@@ -274,14 +274,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
         if let Some((snapshot, cause, window)) = shared.take_full() {
-            let start = clock.now();
-            let made = snapshot.select();
-            let spent = clock.now().wrapping_sub(start);
-            self.screen_cost = spent;
-            self.screen_cost_max = self.screen_cost_max.max(spent);
-            if made && let Some(message) = snapshot.message(cause) {
-                self.latest = Some(message);
-            }
+            self.screen(snapshot, cause, clock);
             critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
             screened();
             if cause == SnapshotCause::Final {
@@ -308,6 +301,30 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.send_health::<L, K>(shared, link)?;
         }
         Ok(())
+    }
+
+    /// The screening of `snapshot` and its model as the latest (its cost in `clock` ticks).
+    /// Not inlined: its locals (the screening's factors and sweep, the model's frame) are
+    /// on the stack only while it runs, not in the board's main loop's frame for good.
+    #[inline(never)]
+    fn screen<K: Clock>(&mut self, snapshot: &mut S, cause: SnapshotCause, clock: &K) {
+        let start = clock.now();
+        let made = snapshot.select();
+        let spent = clock.now().wrapping_sub(start);
+        self.screen_cost = spent;
+        self.screen_cost_max = self.screen_cost_max.max(spent);
+        if made {
+            self.take_model(snapshot, cause);
+        }
+    }
+
+    /// The snapshot's model as the latest message. Not inlined: the frame's message is
+    /// built here, apart from the screening's locals.
+    #[inline(never)]
+    fn take_model(&mut self, snapshot: &S, cause: SnapshotCause) {
+        if let Some(message) = snapshot.message(cause) {
+            self.latest = Some(message);
+        }
     }
 
     /// A window's model is in: how it moved from the previous window's.
@@ -348,6 +365,8 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     /// by the identify task before its next sample), `Query` (the latest model and
     /// health), `Reset` (the configuration anew). A host's sample batch is refused with
     /// `Busy`: this device samples its own sensor. Garbage is counted and skipped.
+    /// Not inlined (a decoded command and its reply are on the stack only while it runs).
+    #[inline(never)]
     pub fn receive<L: Transport, K: Clock>(
         &mut self,
         bytes: &[u8],
