@@ -81,6 +81,14 @@ impl<T: Real, const P: usize, const E: usize> MultiFactor<T, P, E> {
         self.weight
     }
 
+    /// Empty again, over `n` columns and `targets` right-hand sides (clamped to `P` and `E`):
+    /// [`MultiFactor::new`] in place.
+    pub fn reshape(&mut self, n: usize, targets: usize) {
+        self.n = n.min(P);
+        self.targets = targets.min(E);
+        self.clear();
+    }
+
     /// Empties the factor (same columns and targets).
     pub fn clear(&mut self) {
         for row in self.r.iter_mut() {
