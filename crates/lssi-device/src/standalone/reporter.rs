@@ -327,7 +327,9 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         }
     }
 
-    /// A window's model is in: how it moved from the previous window's.
+    /// A window's model is in: how it moved from the previous window's. Not inlined (its
+    /// copy of the previous model is on the stack only while it runs).
+    #[inline(never)]
     fn end_window(&mut self) {
         self.windows = self.windows.saturating_add(1);
         // Drift is reported for one equation's model (a system's is in its frames).
