@@ -496,7 +496,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         if let Store::Warmup(rows) = &mut self.store {
             rows.clear();
         } else {
-            self.store = Store::Warmup(heapless::Vec::new());
+            self.store = const { Store::Warmup(heapless::Vec::new()) };
         }
         self.block.reshape(n, equations);
         self.regression_rows = 0;
