@@ -26,10 +26,10 @@ llvm_size="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-size"
 objdump="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-objdump"
 # Measured by scripts/ci-qemu.sh at the commit that set them: the QEMU standalone image's
 # deepest stack and its main's frame, one channel then two.
-stack_one=${LSSI_STACK_ONE:-@STACK_ONE@}
-qemu_main_one=${LSSI_QEMU_MAIN_ONE:-@MAIN_ONE@}
-stack_system=${LSSI_STACK_SYSTEM:-@STACK_SYSTEM@}
-qemu_main_system=${LSSI_QEMU_MAIN_SYSTEM:-@MAIN_SYSTEM@}
+stack_one=${LSSI_STACK_ONE:-9800}
+qemu_main_one=${LSSI_QEMU_MAIN_ONE:-2840}
+stack_system=${LSSI_STACK_SYSTEM:-9596}
+qemu_main_system=${LSSI_QEMU_MAIN_SYSTEM:-2984}
 # A function's frame: the bytes its `sub sp, #…` instructions reserve.
 main_frame() {
     "$objdump" -d --no-show-raw-insn "$1" | awk '
