@@ -164,6 +164,19 @@ mod flavour {
 
 use flavour::{EMPTY, Id, IdConfig, Shot};
 
+mod once;
+use once::TakeOnce;
+
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.ENGINE")]
+static ENGINE: TakeOnce<Id> = TakeOnce::new(Id::new());
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".bss.lssi.SNAPSHOT")]
+static SNAPSHOT: TakeOnce<Shot> = TakeOnce::new(EMPTY);
+static QUEUE: TakeOnce<EventQueue> = TakeOnce::new(Queue::new());
+static RX_RING: TakeOnce<Queue<u8, 257>> = TakeOnce::new(Queue::new());
+static TX_RING: TakeOnce<Queue<u8, 1537>> = TakeOnce::new(Queue::new());
+
 static SHARED: Shared<P, Shot> = Shared::new();
 static SENSOR: Mutex<RefCell<Option<Sensor>>> = Mutex::new(RefCell::new(None));
 static IDENTIFY: IdentifyTask<W, P, C, Id> = IdentifyTask::new();
@@ -255,11 +268,13 @@ fn main() -> ! {
         rcc.cfgr.freeze()
     };
 
-    let engine = cortex_m::singleton!(: Id = Id::new());
-    let snapshot = cortex_m::singleton!(: Shot = EMPTY);
-    let queue = cortex_m::singleton!(: EventQueue = Queue::new());
-    let rx_ring = cortex_m::singleton!(: Queue<u8, 257> = Queue::new());
-    let tx_ring = cortex_m::singleton!(: Queue<u8, 1537> = Queue::new());
+    // Statics with constant initialisers (`cortex_m::singleton!` built each value in this
+    // frame and copied it: the identifier's 9.8 KB stayed in main's frame for good).
+    let engine = ENGINE.take();
+    let snapshot = SNAPSHOT.take();
+    let queue = QUEUE.take();
+    let rx_ring = RX_RING.take();
+    let tx_ring = TX_RING.take();
     let (Some(engine), Some(snapshot), Some(queue), Some(rx_ring), Some(tx_ring)) =
         (engine, snapshot, queue, rx_ring, tx_ring)
     else {

@@ -7,7 +7,7 @@ use crate::real::Real;
 use crate::weak::Bump;
 
 /// Overlapping test-function sums of a row's columns and its `E` targets.
-#[derive(Clone)]
+#[derive(Clone, Copy)]
 pub(super) struct SystemTestRows<T, const P: usize, const E: usize> {
     /// Rows per test function, L (0: off).
     width: u32,
