@@ -341,6 +341,12 @@ pub fn run(args: &ReplayArgs) -> Result<(), CliError> {
                 for w in &report.report.warnings {
                     eprintln!("lssi: warning: {w}.");
                 }
+                if let Some(q) = report.report.quality.as_ref().filter(|q| !q.passed()) {
+                    eprintln!(
+                        "lssi: warning: lssi identify would withhold this model (exit status 3): {}.",
+                        q.failures.join("; ")
+                    );
+                }
                 crate::out!("{}", report.report.render());
                 crate::outln!(
                     "  (the device sends each equation's selected solution, not its whole sweep: `lssi identify --f32 --no-refine` lists every candidate)"

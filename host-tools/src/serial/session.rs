@@ -207,6 +207,15 @@ pub fn replay_system(
         replay_system_over(link, &data, &config, estimated, mode)
     })
     .map(|mut replayed| {
+        // The host's gate on the device's model, as `lssi identify` judges its own: its
+        // measures and warnings in the report; a model it would withhold is said so.
+        let quality = crate::system::quality::assess(&replayed.report, &data);
+        let report = &mut replayed.report;
+        report.warnings.extend(quality.warnings.iter().cloned());
+        if !quality.passed() {
+            report.warnings.extend(quality.failures.iter().cloned());
+        }
+        report.quality = Some(quality);
         if let Some(ohms) = load_ohms {
             replayed.report.harvester = Some(crate::system::power::harvester(
                 &replayed.report,
