@@ -419,17 +419,22 @@ pub fn fit_system(
             "load_ohms must be a positive resistance in ohms, not {r}."
         ));
     }
-    let (config, estimated) =
+    let (config, _) =
         system::configure(data, options, coupling_order).map_err(|e| e.to_string())?;
-    let mut report = if options.f32 {
-        system::run::<f32>(data, config, estimated)
-    } else {
-        system::run::<f64>(data, config, estimated)
-    }
-    .map_err(|e| e.to_string())?;
-    if let Some(r) = load_ohms {
-        report.harvester = Some(system::power::harvester(&report, data, r));
-    }
+    // The command's one path: the streaming identifier, refinement, the system's gate and,
+    // for a model that passes, the harvester in physical terms. A withheld model is an error
+    // with the sentence `lssi identify` prints.
+    let args = system::SystemArgs {
+        columns: system::ElectricalColumns::default(),
+        load_ohms,
+        coupling_order,
+    };
+    let report = match system::identify_system(data, options, &args, false)
+        .map_err(|e| e.to_string())?
+    {
+        system::Outcome::Passed(report) => *report,
+        system::Outcome::Withheld(sentence, _) => return Err(sentence),
+    };
     let model = SystemSim::of_report(&report).ok_or_else(|| {
         "internal error: a term of the system's report is not one lssi can simulate; please report it."
             .to_string()
