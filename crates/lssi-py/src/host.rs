@@ -429,12 +429,11 @@ pub fn fit_system(
         load_ohms,
         coupling_order,
     };
-    let report = match system::identify_system(data, options, &args, false)
-        .map_err(|e| e.to_string())?
-    {
-        system::Outcome::Passed(report) => *report,
-        system::Outcome::Withheld(sentence, _) => return Err(sentence),
-    };
+    let report =
+        match system::identify_system(data, options, &args, false).map_err(|e| e.to_string())? {
+            system::Outcome::Passed(report) => *report,
+            system::Outcome::Withheld(sentence, _) => return Err(sentence),
+        };
     let model = SystemSim::of_report(&report).ok_or_else(|| {
         "internal error: a term of the system's report is not one lssi can simulate; please report it."
             .to_string()
