@@ -205,8 +205,22 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     };
     // A recording with an electrical channel is a system (issue 26; crate::system).
     if args.more.is_empty() && !args.track && !args.csv && args.quantise.is_none() {
-        match crate::system::read_if_system(input.file(), &args.columns, &args.system.columns)? {
-            Some(data) => {
+        let read = crate::system::read_if_system(input.file(), &args.columns, &args.system.columns)
+            .map_err(|e| match e {
+                // A spooled pipe's messages name it as the user did (`-`), not the temporary file.
+                e if e.exit_code() == crate::error::EXIT_BAD_INPUT
+                    && input.file() != input.name() =>
+                {
+                    CliError::Input(e.to_string().replace(
+                        &input.file().display().to_string(),
+                        &input.name().display().to_string(),
+                    ))
+                }
+                e => e,
+            })?;
+        match read {
+            Some(mut data) => {
+                data.recording.path = input.name().to_owned();
                 return crate::system::identify_command(
                     &data,
                     &options,
