@@ -426,29 +426,15 @@ impl<'a> Link<'a> {
     pub fn query_system(&mut self) -> Result<(Option<SystemSnapshot>, Health), LinkError> {
         let mut last = None;
         for _ in 0..8 {
-            let mut model = None;
-            let port = self.port.clone();
-            let health = self.command(
-                &HostMsg::Query,
+            let (model, health) = self.query_with(
                 "the system's model (the answer to Query)",
                 |reply| match reply {
                     DeviceMsg::SystemModel(snapshot) if snapshot.cause == SnapshotCause::Query => {
-                        model = Some(snapshot.clone());
-                        None
+                        Some(snapshot.clone())
                     }
-                    DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
-                    DeviceMsg::Nak {
-                        seq: CONTROL_SEQ,
-                        reason,
-                    } => Some(Err(LinkError::Refused {
-                        port: port.clone(),
-                        command: "the query",
-                        reason: *reason,
-                    })),
                     _ => None,
                 },
             )?;
-            self.settle(&health)?;
             if model.is_some() || health.screenings == 0 {
                 return Ok((model, health));
             }
@@ -523,28 +509,40 @@ impl<'a> Link<'a> {
     }
 
     pub(super) fn query_once(&mut self) -> Result<(Option<ModelSnapshot>, Health), LinkError> {
+        self.query_with("the model (the answer to Query)", |reply| match reply {
+            DeviceMsg::Model(snapshot) if snapshot.cause == SnapshotCause::Query => {
+                Some(snapshot.clone())
+            }
+            _ => None,
+        })
+    }
+
+    /// One `Query`: the model frame `pick` takes from the replies (before the `Health`), and
+    /// the health counters, settled; a `Nak` is the device's refusal.
+    fn query_with<M>(
+        &mut self,
+        what: &'static str,
+        pick: impl Fn(&DeviceMsg) -> Option<M>,
+    ) -> Result<(Option<M>, Health), LinkError> {
         let mut model = None;
         let port = self.port.clone();
-        let health = self.command(
-            &HostMsg::Query,
-            "the model (the answer to Query)",
-            |reply| match reply {
-                DeviceMsg::Model(snapshot) if snapshot.cause == SnapshotCause::Query => {
-                    model = Some(snapshot.clone());
-                    None
+        let health = self.command(&HostMsg::Query, what, |reply| match reply {
+            DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
+            DeviceMsg::Nak {
+                seq: CONTROL_SEQ,
+                reason,
+            } => Some(Err(LinkError::Refused {
+                port: port.clone(),
+                command: "the query",
+                reason: *reason,
+            })),
+            other => {
+                if let Some(m) = pick(other) {
+                    model = Some(m);
                 }
-                DeviceMsg::Health { .. } => Health::of(reply).map(Ok),
-                DeviceMsg::Nak {
-                    seq: CONTROL_SEQ,
-                    reason,
-                } => Some(Err(LinkError::Refused {
-                    port: port.clone(),
-                    command: "the query",
-                    reason: *reason,
-                })),
-                _ => None,
-            },
-        )?;
+                None
+            }
+        })?;
         self.settle(&health)?;
         Ok((model, health))
     }
