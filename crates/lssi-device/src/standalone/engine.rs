@@ -29,6 +29,8 @@ pub struct Engine<const W: usize, const P: usize, const C: usize> {
     cost_sum: u64,
     cost_count: u64,
     cost_max: u32,
+    /// Scheduled screenings since configured (the stride's count).
+    scheduled: u32,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Default for Engine<W, P, C> {
@@ -51,6 +53,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             cost_sum: 0,
             cost_count: 0,
             cost_max: 0,
+            scheduled: 0,
         }
     }
 
@@ -81,6 +84,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         self.cost_sum = 0;
         self.cost_count = 0;
         self.cost_max = 0;
+        self.scheduled = 0;
         Ok(())
     }
 
@@ -144,6 +148,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
+        let scheduled = &mut self.scheduled;
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -158,6 +163,11 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         let windowed = shared.windowed.load(Ordering::Relaxed);
         let _ = id.push_with(sample, |id| {
             if windowed {
+                return false;
+            }
+            // Every `model_stride`-th one only: the others are left out whole.
+            *scheduled = scheduled.wrapping_add(1);
+            if !(*scheduled).is_multiple_of(shared.model_stride()) {
                 return false;
             }
             match shared.take_free() {

@@ -187,6 +187,46 @@ pub const SLICE_TICKS: u32 = 25_000;
 /// (the recording's rate) is decimated to it by a whole factor.
 pub const DEFAULT_ROW_HZ: f64 = 200.0;
 
+/// Rows a second up to which the image takes itself to be on a harvester's power (the
+/// rates `lssi identify` proposes for harvesters: 50 samples a period of a 3–20 Hz line):
+/// it then runs a scheduled screening, and reports a new model, only about every
+/// [`MODEL_INTERVAL_S`]. Above it (a bench instrument at kHz rates) every scheduled
+/// screening runs.
+pub const LOW_POWER_ROW_HZ: f64 = 1000.0;
+
+/// Seconds between the models a device on a harvester's power screens and reports (the
+/// scheduled screenings in between are left out whole; the rows, the K re-choice and so the
+/// models made are the same bit for bit). A screening at eveh's configuration is ≈ 7.5 M
+/// instructions; one every 48 s (`lssi identify`'s 10 000 rows at 210 Hz) was 37 % of the
+/// instructions on top of the rows (scripts/firmware-power.sh). A harvester changes over
+/// weeks: a model every 5 minutes tracks it.
+pub const MODEL_INTERVAL_S: f64 = 300.0;
+
+/// Seconds between the unsolicited Model and Health frames of a device on a harvester's
+/// power (every second above [`LOW_POWER_ROW_HZ`]). A frame costs the core tens of
+/// thousands of instructions (encoding, CRC, a UART interrupt a byte): at 210 rows a second
+/// a Model and a Health every second were ≈ 0.2 of the instructions of the rows
+/// (scripts/firmware-power.sh). A host's Query is answered at once either way.
+pub const LOW_POWER_REPORT_S: u32 = 60;
+
+/// Clock ticks between the unsolicited reports for `config`.
+fn report_ticks(config: &Config) -> u32 {
+    if config.sample_period * LOW_POWER_ROW_HZ >= 1.0 {
+        BoardClock::HZ.saturating_mul(LOW_POWER_REPORT_S)
+    } else {
+        BoardClock::HZ
+    }
+}
+
+/// The stride of scheduled screenings for `config` (see [`LOW_POWER_ROW_HZ`]).
+fn model_stride(config: &Config) -> u32 {
+    if config.sample_period * LOW_POWER_ROW_HZ >= 1.0 {
+        lssi_device::standalone::model_stride_for(MODEL_INTERVAL_S, config)
+    } else {
+        1
+    }
+}
+
 /// The CIC order of the decimation (see lssi_device::decimate): −57 dB on what folds onto
 /// a tenth of the row rate.
 pub const CIC_ORDER: u8 = 3;
@@ -320,6 +360,7 @@ fn main() -> ! {
     });
     let base = *flavour::base(&mut config);
     let row_hz = 1.0 / base.sample_period;
+    SHARED.set_model_stride(model_stride(&base));
     defmt::info!(
         "lssi standalone: {=u32} conversions at {=f64} Hz, decimated by {=u32} (CIC order {=u8}) to rows at {=f64} Hz, window {=usize}, screening every {=u32}",
         recording.len,
@@ -330,8 +371,12 @@ fn main() -> ! {
         base.window,
         base.screening_period
     );
+    defmt::info!(
+        "a model every {=u32} scheduled screening(s)",
+        SHARED.model_stride()
+    );
     let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot> =
-        Reporter::new(config, row_hz as f32, BoardClock::HZ);
+        Reporter::new(config, row_hz as f32, report_ticks(&base));
     reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
     // A duty cycle: windows of identification, Model and Health at the end of each, the
     // sensor left alone in between (the sampling interrupt drops the recording's samples
@@ -458,6 +503,11 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
         "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
         critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
         TICKS.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "screenings run while sampling: {=u32} (a model every {=u32} scheduled screening(s))",
+        reporter.screenings_run,
+        SHARED.model_stride()
     );
     platform::exit(platform::EXIT_SUCCESS)
 }
