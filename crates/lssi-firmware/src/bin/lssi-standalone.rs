@@ -159,14 +159,17 @@ static RX_LOST: AtomicU32 = AtomicU32::new(0);
 /// interrupts taken in between included): the longest wake-up, what a harvester's storage
 /// capacitor must carry at run current.
 static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
-/// The same once the recording ended (QEMU's recording only: the final screening, which no
-/// row interrupts, runs in one wake-up).
+/// The same once the recording ended (QEMU's recording only: the final screening, sliced
+/// like the rest, the timer going on as the slicer's clock).
 static AWAKE_MAX_ENDED: AtomicU32 = AtomicU32::new(0);
 /// `wfi`s executed (wake-ups).
 static SLEEPS: AtomicU32 = AtomicU32::new(0);
 /// Clock ticks awake while sampling, all wake-ups together (what the energy figure of
 /// scripts/firmware-bench.sh takes: rows, conversions, frames and screenings).
 static AWAKE_TOTAL: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
+/// Clock ticks awake after the recording ended (the final screening, sliced, and its
+/// frames): what a screening costs, as the sliced screening's own clock time is not.
+static AWAKE_ENDED: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
 /// The clock when the core last woke.
 static WOKE: AtomicU32 = AtomicU32::new(0);
 /// TIMER0's interrupts so far (conversions, or their times in an interval): the slicer
@@ -174,6 +177,8 @@ static WOKE: AtomicU32 = AtomicU32::new(0);
 static TICKS: AtomicU32 = AtomicU32::new(0);
 /// The sampling timer stopped (the recording ended): the slicer sleeps no more.
 static STOPPED: AtomicBool = AtomicBool::new(false);
+/// TIMER0's interrupts when the recording ended (the timer goes on after it).
+static TICKS_ENDED: AtomicU32 = AtomicU32::new(0);
 /// Times the slicer put thread mode to sleep until the next row.
 static SLICES: AtomicU32 = AtomicU32::new(0);
 
@@ -469,8 +474,11 @@ fn main() -> ! {
 
 /// The recording is done: waits for the UART to send everything, logs the figures, exits.
 fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
+    // Taken first: the logging below is not the device's work.
+    let awake_ended = critical_section::with(|cs| AWAKE_ENDED.borrow(cs).get())
+        + u64::from(BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed)));
     while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
-        cortex_m::asm::wfi();
+        sleep();
     }
     let c = &SHARED.counters;
     let status = SHARED.status();
@@ -502,7 +510,11 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
     defmt::info!(
         "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
         critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
-        TICKS.load(Ordering::Relaxed)
+        TICKS_ENDED.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "awake after the recording ended: {=u64} ticks (the final screening, sliced, and its frames)",
+        awake_ended
     );
     defmt::info!(
         "screenings run while sampling: {=u32} (a model every {=u32} scheduled screening(s))",
@@ -518,6 +530,10 @@ fn sleep() {
     let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
     if STOPPED.load(Ordering::Relaxed) {
         AWAKE_MAX_ENDED.fetch_max(awake, Ordering::Relaxed);
+        critical_section::with(|cs| {
+            let total = AWAKE_ENDED.borrow(cs);
+            total.set(total.get() + u64::from(awake));
+        });
     } else {
         AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
         critical_section::with(|cs| {
@@ -550,7 +566,7 @@ fn slicer(on: bool) {
 #[exception]
 fn SysTick() {
     let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
-    if awake < SLICE_TICKS || STOPPED.load(Ordering::Relaxed) {
+    if awake < SLICE_TICKS {
         return;
     }
     let factor = critical_section::with(|cs| {
@@ -564,12 +580,12 @@ fn SysTick() {
     loop {
         let slept = cortex_m::interrupt::free(|_| {
             let waiting = TICKS.load(Ordering::Relaxed).wrapping_sub(start) < factor;
-            if waiting && !STOPPED.load(Ordering::Relaxed) {
+            if waiting {
                 sleep();
             }
             waiting
         });
-        if !slept || STOPPED.load(Ordering::Relaxed) {
+        if !slept {
             break;
         }
     }
@@ -591,7 +607,9 @@ impl Transport for Link {
         for &b in bytes {
             while self.tx.enqueue(b).is_err() {
                 kick_tx();
-                cortex_m::asm::wfi();
+                // Asleep while the UART drains the ring (counted as asleep: the core waits
+                // in WFI, which the awake total took for work before).
+                sleep();
             }
         }
         kick_tx();
@@ -609,6 +627,11 @@ fn kick_tx() {
 fn on_timer() {
     mps2::clear_sampling_irq();
     TICKS.fetch_add(1, Ordering::Relaxed);
+    // After the recording the timer goes on as the slicer's clock (the final screening is
+    // sliced like the rest): it counts, and samples nothing.
+    if STOPPED.load(Ordering::Relaxed) {
+        return;
+    }
     let stamp = BoardClock.now();
     // The identify task is woken only when a row is made (once every decimation factor
     // conversions), and at the end.
@@ -623,7 +646,7 @@ fn on_timer() {
             sensor.sampler.convert(stamp, reading, &SHARED)
         } else {
             if sensor.sampler.end() {
-                mps2::stop_sampling();
+                TICKS_ENDED.store(TICKS.load(Ordering::Relaxed), Ordering::Relaxed);
                 STOPPED.store(true, Ordering::Relaxed);
             }
             true
