@@ -1,6 +1,7 @@
 //! The standalone instrument on QEMU's `mps2-an386`: samples its "sensor" (a recording in
 //! PSRAM, see `lssi_firmware::mps2`) by TIMER0, identifies, and reports Model and Health
-//! frames on UART0 every second by itself; a host may connect at any time and query or
+//! frames on UART0 by itself (every second; every minute, with a new model every 5 minutes,
+//! at a harvester's row rates: [`LOW_POWER_ROW_HZ`]); a host may connect at any time and query or
 //! reconfigure (`lssi monitor`). The application logic is lssi-device's `standalone`
 //! module, shared with the STM32F411 board (crates/lssi-board-f411).
 //!
@@ -22,7 +23,8 @@
 //! instead of in one wake-up of a few hundred milliseconds.
 //!
 //! When the recording ends, the last model (a screening of every sample, as `lssi identify`
-//! makes) and a Health frame go out, the UART drains and QEMU exits with status 0.
+//! makes; sliced like the rest, the timer going on as the slicer's clock) and a Health frame
+//! go out, the UART drains and QEMU exits with status 0.
 //!
 //! Built with the `system` feature, it is the two-channel instrument: each conversion reads
 //! x and the voltage V across the harvester's load (the recording's electrical channel),
