@@ -5,7 +5,8 @@
 #
 #   bash scripts/firmware-power.sh                 # about 1 min (2-3 more to build the images)
 #   ROW_HZ=200 bash scripts/firmware-power.sh      # another row rate than the proposed one
-#   SECONDS_PLAYED=120 bash scripts/firmware-power.sh
+#   SECONDS_PLAYED=570 bash scripts/firmware-power.sh   # else about 600 s: half-way
+#                                                  # between two scheduled screenings
 #   CONV_COST=N DEC_COST=N ...                     # the F4 decimator's cost (firmware-bench.sh
 #                                                  # passes its bench-profile figures; else
 #                                                  # the bench-profile image is built and run)
@@ -14,7 +15,7 @@
 # standalone image (crates/lssi-firmware/src/bin/lssi-standalone.rs) at its defaults for a
 # device on a harvester's power (a model every MODEL_INTERVAL_S = 5 min, Model and Health
 # every 60 s), with the configuration `lssi identify` picks for the recording (stored as a
-# host's Configure by `lssi monitor --qemu`), sampling SECONDS_PLAYED (600) s of `lssi gen
+# host's Configure by `lssi monitor --qemu`), sampling SECONDS_PLAYED (≈ 600) s of `lssi gen
 # eveh --rate ROW_HZ --observe x`, one conversion a row (the L432's hardware oversampler
 # delivers one value a row). The image counts every tick the core is awake while sampling
 # (rows, the sampling and identify interrupts, thread mode, the frames, the screenings run,
@@ -113,6 +114,15 @@ if [[ -z ${CONV_COST:-} || -z ${DEC_COST:-} ]]; then
     fi
 fi
 
+# The recording ends half-way between two of the image's scheduled screenings (one every
+# MODEL_INTERVAL_S = 300 s, rounded down to whole screenings of `lssi identify`'s 10 000
+# rows): a scheduled screening at the very end would run after it, beside the final one,
+# and be taken for the final screening's cost (checked below).
+if [[ -z ${SECONDS_PLAYED:-} ]]; then
+    seconds=$(awk -v r="$ROW_HZ" -v s="$seconds" 'BEGIN {
+        every = 10000 / r; n = int(300 / every); if (n < 1) n = 1; i = n * every
+        k = int(s / i); if (k < 1) k = 1; printf "%.3f", (k + 0.5) * i }')
+fi
 "$lssi" gen eveh "$work/eveh.csv" --rate "$ROW_HZ" --t-end "$seconds" --observe x >/dev/null
 "$lssi" monitor --qemu "$work/eveh.csv" --json --firmware "$standalone" \
     --log "$work/eveh.tlm" >"$work/eveh.json"
@@ -136,6 +146,13 @@ if [[ -z ${awake_ticks:-} || -z ${final_screen:-} || -z ${stride:-} || -z ${peri
     exit 1
 fi
 config_line=$(grep -m1 "lssi standalone:" "$work/eveh.log" | sed 's/.*lssi standalone: //')
+# No scheduled screening may have begun in the last tenth of an interval (it would run after
+# the recording, counted with the final one).
+if ! awk -v n="$interrupts" -v st="$stride" -v p="$period" 'BEGIN {
+    i = st * p; exit !((n % i) > 0.1 * i) }'; then
+    echo "firmware-power: the recording ends at a scheduled screening ($interrupts rows, one every $((stride * period))): give another SECONDS_PLAYED" >&2
+    exit 1
+fi
 echo
 echo "Average power, eveh (3.41 Hz forcing) at $ROW_HZ rows/s; 10 s windows every 10 min duty-cycled"
 if [[ -n $proposal ]]; then echo "(lssi identify on 20 s at 10 kHz: $proposal)"; fi
