@@ -264,66 +264,9 @@ echo
 echo "Harvesters make 0.1-10 mW; the power is proportional to the rate (harvesters ring at 3-50 Hz)."
 echo "scripts/lowest-rate.sh: the lowest rate that still identifies data/eveh-bistable.csv within 1 %."
 
-# Average power of a device identifying the eveh harvester (Ω = 21.4 rad/s, 3.41 Hz) at its
-# proposed row rate, 200 rows a second (59 a forcing period), continuously and duty-cycled
-# (a 10 s window every 10 minutes, Stop between windows).
-#
-# The instructions are measured under QEMU on the standalone image itself, with the
-# configuration `lssi identify` picks for eveh sampled at 200 Hz (tuning::choose_test_rows'
-# low-rate branch: test-function rows of 28 samples, window 11 of degree 7, a screening
-# every 10 000 rows), stored in the image as a host's Configure frame by `lssi monitor
-# --qemu`: 120 s of `lssi gen eveh --rate 200 --observe x`, one conversion a row (the L432's
-# hardware oversampler delivers one value a row). The image counts every clock tick the core
-# is awake while sampling (rows, the sampling and identify interrupts, thread mode's passes,
-# the Model and Health frames every second, the two scheduled screenings, spread over rows)
-# and logs it at the end ("awake while sampling"); its final Health gives the final
-# screening's cost (after the recording ended nothing interrupts it). -icount shift=4: 2.5
-# instructions a 25 MHz tick.
-#
-# Thread mode sleeps through the rows' interrupts (it wakes for a snapshot, a host's byte or
-# a report due): measured, 47.7 M ticks over 120 s instead of 48.6 M with a pass every row.
-#
-# Every constant and where it comes from:
-#
-#   V            3.3 V supply (both parts run from 1.7-3.6 V; the currents below are typical,
-#                25 °C, at 3.3 V where the document gives a choice).
-#   cycles       one cycle an executed instruction (QEMU counts instructions; flash wait
-#                states, loads and VDIV/VSQRT make the real count higher: a floor).
-#   conversion   the F4's software decimation: bench-profile's `sampler_conversion` (the
-#                standalone Sampler with a CIC of order 3, 50 conversions a row, as TIM2's
-#                interrupt calls it) + 24 cycles of exception entry and exit (ARM Cortex-M4
-#                Technical Reference Manual r0p1, 3.9 "Exceptions": 12-cycle entry latency,
-#                12-cycle return with the FPU context not stacked).
-#   STM32F411 (DS10314 "STM32F411xC STM32F411xE" datasheet; the revision on st.com):
-#     run        100 µA/MHz: title page, "Power consumption: Run: 100 µA/MHz (peripheral off)".
-#     sleep      1000 µA at fHCLK = 16 MHz (HSI, PLL off) with TIM2 and ADC1 clocked: order of
-#                magnitude read from table "Typical and maximum current
-#                consumption in Sleep mode" - CHECK against the table before quoting.
-#                The F4 has no lower mode in which a timer and the ADC run: it sleeps (WFI)
-#                between conversions.
-#     adc        1600 µA while the ADC is on (the HAL image keeps ADON set): table "ADC characteristics", IDDA (VDDA current) typ - CHECK.
-#     stop       9 µA between windows: title page, "Stop (Flash in Deep power down mode, slow
-#                wakeup time): down to 9 µA @ 25 °C" (+ RTC for the wake-up: title page,
-#                "VBAT supply for RTC: 1 µA @25 °C") = 10 µA.
-#     wake       100 µs from Stop (flash in deep power-down) at run current: table "Low-power mode wakeup timings" - CHECK.
-#     clock      16 MHz HSI, PLL off (what the harvester's load needs, see the cycles below).
-#   STM32L432 (DS11451 "STM32L432KB STM32L432KC" datasheet; the revision on st.com):
-#     run        84 µA/MHz: title page, "84 µA/MHz run mode" (LDO).
-#     stop2      1.28 µA: title page, "1.0 µA Stop 2 mode, 1.28 µA with RTC" (the RTC or
-#                LPTIM1 wakes it).
-#     wake       4 µs from Stop: title page, "4 µs wakeup from Stop mode".
-#     adc        200 µA/Msps: title page, "1x 12-bit ADC 5 Msps, up to 16-bit with hardware
-#                oversampling, 200 µA/Msps".
-#     adcvreg    20 µs of the ADC's voltage regulator start-up after each Stop 2: table "ADC characteristics", tADCVREG_STUP - CHECK.
-#     lpsleep    60 µA in Low-power sleep at 2 MHz (MSI), the ADC and a timer clocked:
-#                table "Current consumption in Low-power sleep modes" - CHECK.
-#   The L432's path: LPTIM1 wakes it from Stop 2 at 200 Hz; the ADC converts a burst of OVSR
-#   conversions at 1 Msps averaged by its hardware oversampler (ADC_CFGR2 OVSR, a power of
-#   two) into one row; the core computes the row at 16 MHz and returns to Stop 2. The ADC
-#   cannot run in Stop 2, so the burst averages noise but does not band-limit: the front
-#   end's RC filter must do that below 100 Hz. The alternative that decimates for
-#   anti-aliasing (12.8 kHz conversions spread over the row, the core in Low-power sleep) is
-#   the table's last row.
+# Average power of a device identifying the eveh harvester at the row rate `lssi identify`
+# proposes, continuously and duty-cycled: scripts/firmware-power.sh (every constant and its
+# source are listed there), with the F4 decimator's cost measured above.
 conv_cost=$(field "$prof" sampler_conversion mean)
 dec_cost=$(field "$prof" decimate_conversion mean)
 if [[ -z $conv_cost || -z $dec_cost ]]; then
@@ -331,112 +274,11 @@ if [[ -z $conv_cost || -z $dec_cost ]]; then
     echo "firmware-bench: no decimation figures in the bench-profile image's output" >&2
     exit 1
 fi
-(cd "$root" && cargo build --release --locked --quiet -p lssi-host --bin lssi)
-lssi="${CARGO_TARGET_DIR:-$root/target}/release/lssi"
-cargo build --release --locked --quiet --bin lssi-standalone
-standalone="$work/standalone.elf"
-cp target/thumbv7em-none-eabihf/release/lssi-standalone "$standalone"
-"$lssi" gen eveh "$work/eveh200.csv" --rate 200 --t-end 120 --observe x >/dev/null
-"$lssi" monitor --qemu "$work/eveh200.csv" --json --firmware "$standalone" \
-    --log "$work/eveh200.tlm" >"$work/eveh200.json"
-"$lssi" log "$work/eveh200.tlm" --elf "$standalone" >"$work/eveh200.log" 2>&1 || true
-awake=$(sed -n 's/.*awake while sampling: \([0-9]*\) ticks over \([0-9]*\) sampling.*/\1 \2/p' "$work/eveh200.log" | head -1)
-read -r awake_ticks interrupts <<<"$awake"
-read -r final_screen row_push screenings <<<"$(python3 -c '
-import json, sys
-health = [json.loads(l) for l in open(sys.argv[1]) if "\"health\"" in l]
-h = health[-1]
-print(h["screen_cost"], h["cost_mean"], h["screenings"])' "$work/eveh200.json")"
-if [[ -z $awake_ticks || -z $final_screen ]]; then
-    cat "$work/eveh200.log" >&2
-    echo "firmware-bench: no awake figure from the standalone image on eveh at 200 Hz" >&2
-    exit 1
-fi
-config_line=$(grep -m1 "lssi standalone:" "$work/eveh200.log" | sed 's/.*lssi standalone: //')
-echo
-echo "Average power, eveh (3.41 Hz forcing) at 200 rows/s; 10 s windows every 10 min duty-cycled"
-echo "(the standalone image under QEMU, as lssi identify configures it: $config_line;"
-echo " $interrupts rows in 120 s, awake $awake_ticks ticks of 25 MHz = $((awake_ticks * 5 / 2)) instructions while"
-echo " sampling, of which $screenings screenings; a screening $((final_screen * 5 / 2)) instructions, a row's push"
-echo " $((row_push * 5 / 2)); $conv_cost a conversion through the F4's CIC-3 decimator of which $dec_cost the filter)"
-echo
-awk -v awake="$awake_ticks" -v n="$interrupts" -v scr_ticks="$final_screen" \
-    -v nscr="$screenings" -v conv="$conv_cost" '
-function out(label, cont, duty) {
-    printf "| %-62s | %10.0f | %10.1f |\n", label, cont, duty
-}
-function part(label, cont) {
-    printf "| %-62s | %10.0f | %10s |\n", label, cont, ""
-}
-function l432(per_s, scr_s, ovsr, scr_per_window,   per_row, cont, win) {
-    # per_s: instructions a second of sampling without screenings; scr_s: screenings a second.
-    per_row = (wake4 + adcvreg + ovsr * 1e-6) * f4     # cycles a row awake for the ADC
-    cont = V * (k4 * (per_s + R * per_row + scr_s * scr) / 1e6 + R * 200 * ovsr * 1e-6 + stop2)
-    win = V * (k4 * (W * (per_s + R * per_row) + scr_per_window * scr) / 1e6 + W * R * 200 * ovsr * 1e-6)
-    L_cont = cont; L_duty = win / T + V * stop2 * (T - W) / T
-}
-BEGIN {
-    V = 3.3; R = 200; W = 10; T = 600
-    secs = n / R                                   # seconds of sampling
-    ins = awake * 2.5                              # instructions awake while sampling
-    scr = scr_ticks * 2.5                          # instructions a screening
-    base = (ins - nscr * scr) / secs               # a second of sampling, no screening
-    scr_rate = nscr / secs                         # screenings a second (every 10 000 rows)
-    # STM32F411: 10 kHz conversions, an interrupt each (CIC 3, D = 50), Sleep in between.
-    A = 10000; isr = 24; f = 16e6
-    k = 100; sleep = 1000; adc = 1600; stop = 10; wake = 100e-6
-    rows = base + A * (conv + isr)                 # cycles/s while sampling, no screening
-    cont_f = V * (k * (rows + scr * scr_rate) / 1e6 + sleep * (1 - (rows + scr * scr_rate) / f) + adc)
-    win = V * (k * (W * rows + scr) / 1e6 + sleep * W + adc * W) + V * k * (f / 1e6) * wake
-    duty_f = win / T + V * stop * (T - W) / T
-    # STM32L432: Stop 2 between rows, a burst of 64 conversions at 1 Msps a row.
-    k4 = 84; f4 = 16e6; stop2 = 1.28; wake4 = 4e-6; adcvreg = 20e-6
-    l432(base, scr_rate, 64, 1); cont_l = L_cont; duty_l = L_duty
-    # Levers, each from the measured instructions:
-    l432(base, 1 / 300, 64, 1); lev_scr_c = L_cont                     # a screening every 5 min
-    l432(base, scr_rate, 16, 1); lev_ovs_c = L_cont; lev_ovs_d = L_duty  # OVSR 16
-    l432(base, 1 / 300, 16, 1); lev_both_c = L_cont; lev_both_d = L_duty
-    l432(base, scr_rate, 16, 1 / 4); lev_w4_d = L_duty             # + a screening every 4th window
-    # Clocked at 4 MHz (MSI) instead of 16: the fixed waits a row (Stop 2 exit, the ADC
-    # regulator and burst) cost a quarter of the cycles; the same µA/MHz assumed (CHECK:
-    # the Range 2 table of the datasheet), the cycles of the rows unchanged (they fit a 5 ms row).
-    f4 = 4e6; l432(base, 1 / 300, 16, 1); lev_4m_c = L_cont; f4 = 16e6
-    # STM32L432, anti-aliasing by decimation: 12.8 kHz conversions, oversampler OVSR 64, the
-    # core in Low-power sleep at 2 MHz between rows (an interrupt a row).
-    lps = 60; A4 = 12800
-    cont_a = V * (k4 * (base + scr * scr_rate) / 1e6 + lps + 200 * A4 / 1e6)
-    win_a = V * (k4 * (W * base + scr) / 1e6 + (lps + 200 * A4 / 1e6) * W)
-    duty_a = win_a / T + V * stop2 * (T - W) / T
-    printf "| %-62s | %10s | %10s |\n", "part and path", "µW cont.", "µW duty"
-    printf "|%s|%s|%s|\n", "----------------------------------------------------------------", "------------", "------------"
-    out("STM32F411, 16 MHz, TIM2+ADC1 10 kHz, CIC-3 in the ISR, WFI", cont_f, duty_f)
-    part("  of which the ADC, left on", V * adc)
-    part("  of which Sleep between conversions", V * sleep * (1 - (rows + scr * scr_rate) / f))
-    part("  of which the conversions through the decimator", V * k * A * (conv + isr) / 1e6)
-    part("  of which the rows, frames and screenings (measured)", V * k * (base + scr * scr_rate) / 1e6)
-    out("STM32L432, Stop 2 between rows, oversampled 64-burst", cont_l, duty_l)
-    part("  of which the rows, interrupts, frames (measured)", V * k4 * base / 1e6)
-    part("  of which a screening every 10 000 rows (measured)", V * k4 * scr * scr_rate / 1e6)
-    part("  of which awake for the wake-up, ADC start and burst", V * k4 * R * (wake4 + adcvreg + 64e-6) * f4 / 1e6)
-    part("  of which the ADC conversions", V * R * 200 * 64e-6)
-    part("  of which Stop 2 between rows", V * stop2)
-    printf "| %-62s | %10s | %10.1f |\n", "  duty-cycled: the rows of a window", "", V * k4 * W * (base + R * (wake4 + adcvreg + 64e-6) * f4) / 1e6 / T
-    printf "| %-62s | %10s | %10.1f |\n", "  duty-cycled: the screening of a window", "", V * k4 * scr / 1e6 / T
-    printf "| %-62s | %10s | %10.1f |\n", "  duty-cycled: Stop 2 between windows", "", V * stop2 * (T - W) / T
-    out("  lever: a screening every 5 min (screening_period 60 000)", lev_scr_c, duty_l)
-    out("  lever: a burst of 16 (OVSR 16: 4x the noise power a row)", lev_ovs_c, lev_ovs_d)
-    out("  levers together", lev_both_c, lev_both_d)
-    out("  and the core at 4 MHz; duty: a screening every 4th window", lev_4m_c, lev_w4_d)
-    out("STM32L432, 12.8 kHz spread, oversampler, LP sleep 2 MHz", cont_a, duty_a)
-    printf "\n"
-    printf "average power: eveh at 200 rows/s (59 a forcing period), as lssi identify configures it, measured under QEMU: STM32F411 %.0f µW continuous, %.1f µW duty-cycled (10 s every 10 min); STM32L432 %.0f µW continuous (goal <= 250: %s), %.1f µW duty-cycled (goal <= 10: %s)\n", cont_f, duty_f, cont_l, (cont_l <= 250 ? "met" : "NOT met"), duty_l, (duty_l <= 10 ? "met" : "NOT met")
-    printf "  per day: STM32F411 %.2f J / %.3f J, STM32L432 %.2f J / %.3f J (continuous / duty-cycled)\n", cont_f * 86400e-6, duty_f * 86400e-6, cont_l * 86400e-6, duty_l * 86400e-6
-    printf "  instructions a second of sampling: %.0f (%.0f a row) without screenings, + %.0f for a screening every %.0f s\n", base, base / R, scr * scr_rate, 1 / scr_rate
-}'
-echo "The identifier's own instructions dominate on the L432 (its rows, then the awake time the ADC"
-echo "needs a row); duty-cycled, the window's rows and screening. Constants marked CHECK in the"
-echo "script are read from the datasheets' tables as orders of magnitude, the others from their title"
-echo "pages; none was checked against a current revision here."
+CONV_COST=$conv_cost DEC_COST=$dec_cost bash "$root/scripts/firmware-power.sh"
+echo "The identifier's own instructions dominate on the L432 (its rows, then a screening every 5"
+echo "minutes); duty-cycled, the window's screening and Stop 2 between windows. Constants marked CHECK"
+echo "in scripts/firmware-power.sh are read from memory of the datasheets' tables; none was checked"
+echo "against a current revision here."
 
 echo
 echo "What the device image's flash holds (scripts/flash-breakdown.sh):"

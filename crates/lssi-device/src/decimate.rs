@@ -213,7 +213,10 @@ impl Decimator {
         }
         self.phase = 0;
         let done = self.acc[0];
-        self.acc.rotate_left(1);
+        // The blocks move down by one (what `rotate_left(1)` did, without its generic
+        // memmove: ≈ 100 instructions a row on the M4F, measured under QEMU).
+        self.acc[0] = self.acc[1];
+        self.acc[1] = self.acc[2];
         if let Some(last) = self.acc.get_mut(order - 1) {
             *last = [0.0; 3];
         }

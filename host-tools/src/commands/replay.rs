@@ -108,7 +108,12 @@ pub struct ReplayArgs {
     /// Rows a second sent in the configuration: the recording's rows are averaged down to it
     /// (the recording's rate divided by a whole number; a first-order CIC, as a device's
     /// ADC oversampler), and the model is that of the averaged recording [default: the
-    /// recording's own rate, so that the model is `lssi identify --f32`'s].
+    /// recording's own rate, so that the model is `lssi identify --f32`'s]. To replay at the
+    /// rate `lssi identify FILE` proposes ("a device needs N Hz for this harvester"), give
+    /// the recording's rate divided by the largest whole number that keeps it at or above N
+    /// (10 kHz and N = 210: --row-rate 212.766, 10000/47). Not the default: the model is
+    /// then the averaged rows' (`lssi identify --f32 --no-refine` of the averaged file), not
+    /// the recording's own.
     #[arg(long, value_name = "HZ", value_parser = number, allow_hyphen_values = true)]
     pub row_rate: Option<f64>,
     /// The duty cycle's window sent in the configuration: seconds of identification before

@@ -38,6 +38,8 @@ pub use flavour::{FromHost, Screening};
 use lssi_core::Snapshot;
 pub use reporter::{Drift, Reporter};
 pub use sampler::{STUCK_RUN, Sampler, Schedule};
-pub use shared::{Clock, Counters, Event, EventQueue, QUEUE_SLOTS, Reading, Shared, Status};
+pub use shared::{
+    Clock, Counters, Event, EventQueue, QUEUE_SLOTS, Reading, Shared, Status, model_stride_for,
+};
 #[cfg(feature = "system")]
 pub use system::{SystemEngine, SystemShot};

@@ -101,6 +101,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
     screen_cost_max: u32,
     /// Frames sent.
     pub frames_sent: u32,
+    /// Screenings run before the final one (scheduled, or a window's).
+    pub screenings_run: u32,
     finished: bool,
     /// A host's configuration, accepted and not yet taken by the board to keep.
     to_keep: Option<WireConfig>,
@@ -138,6 +140,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             screen_cost: 0,
             screen_cost_max: 0,
             frames_sent: 0,
+            screenings_run: 0,
             finished: false,
             to_keep: None,
             duty: None,
@@ -322,6 +325,9 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         let spent = clock.now().wrapping_sub(start);
         self.screen_cost = spent;
         self.screen_cost_max = self.screen_cost_max.max(spent);
+        if cause != SnapshotCause::Final {
+            self.screenings_run = self.screenings_run.wrapping_add(1);
+        }
         if made {
             self.take_model(snapshot, cause);
         }

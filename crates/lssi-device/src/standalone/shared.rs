@@ -110,6 +110,12 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     /// Sampling in windows: the identify task leaves the scheduled screenings out (the
     /// model is screened and reported once a window, at its end).
     pub(super) windowed: AtomicBool,
+    /// Every how many scheduled screenings one is run and its model reported (0 or 1:
+    /// every one). The others are left out whole (no snapshot, no screening): the
+    /// identifier's rows and its K re-choice go on as before, so the models that are made,
+    /// and the final one, are the same bit for bit; a device on a harvester's power saves
+    /// the screenings' instructions (see [`Shared::set_model_stride`]).
+    pub(super) model_stride: AtomicU32,
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     pub(super) status: Mutex<Cell<Status>>,
 }
@@ -161,6 +167,7 @@ impl<const P: usize, S: Screening> Shared<P, S> {
             decimator: Mutex::new(Cell::new(None)),
             schedule: Mutex::new(Cell::new(None)),
             windowed: AtomicBool::new(false),
+            model_stride: AtomicU32::new(1),
             status: Mutex::new(Cell::new(Status {
                 samples: 0,
                 rejected: 0,
@@ -202,6 +209,18 @@ impl<const P: usize, S: Screening> Shared<P, S> {
         critical_section::with(|cs| self.schedule.borrow(cs).set(Some(schedule)));
     }
 
+    /// Runs only every `stride`-th scheduled screening (0 or 1: every one). A board that
+    /// reports a model every few minutes sets it from its configuration: the stride for a
+    /// model every `s` seconds is [`model_stride_for`]`(s, &config)`.
+    pub fn set_model_stride(&self, stride: u32) {
+        self.model_stride.store(stride.max(1), Ordering::Relaxed);
+    }
+
+    /// The stride set by [`Shared::set_model_stride`].
+    pub fn model_stride(&self) -> u32 {
+        self.model_stride.load(Ordering::Relaxed)
+    }
+
     pub(super) fn take_schedule(&self) -> Option<Schedule> {
         critical_section::with(|cs| self.schedule.borrow(cs).take())
     }
@@ -238,5 +257,46 @@ impl<const P: usize, S: Screening> Shared<P, S> {
 impl<const P: usize, S: Screening> Default for Shared<P, S> {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+/// The stride of scheduled screenings (see [`Shared::set_model_stride`]) for a model about
+/// every `seconds` (at least one a `seconds`, never fewer than every screening): the
+/// scheduled screenings come every `screening_period` rows of `sample_period` s.
+pub fn model_stride_for(seconds: f64, config: &lssi_core::Config) -> u32 {
+    let every = f64::from(config.screening_period) * config.sample_period;
+    if !(seconds.is_finite() && every.is_finite() && every > 0.0 && seconds > every) {
+        return 1;
+    }
+    // Rounded down: a model at least every `seconds`.
+    let n = libm::floor(seconds / every);
+    if n >= f64::from(u32::MAX) {
+        u32::MAX
+    } else {
+        (n as u32).max(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::model_stride_for;
+    use lssi_core::Config;
+
+    #[test]
+    fn the_model_stride_gives_a_model_at_least_every_so_many_seconds() {
+        let at = |hz: f64, period: u32| Config {
+            sample_period: 1.0 / hz,
+            screening_period: period,
+            ..Config::default()
+        };
+        // 10 000 rows at 210 Hz: a screening every 47.6 s, six of them in 5 minutes.
+        assert_eq!(model_stride_for(300.0, &at(210.0, 10_000)), 6);
+        assert_eq!(model_stride_for(300.0, &at(200.0, 10_000)), 6);
+        // Screenings rarer than the interval, or no interval: every one.
+        assert_eq!(model_stride_for(300.0, &at(10.0, 10_000)), 1);
+        assert_eq!(model_stride_for(0.0, &at(210.0, 10_000)), 1);
+        assert_eq!(model_stride_for(f64::NAN, &at(210.0, 10_000)), 1);
+        // 1 000 rows at 10 kHz: every 0.1 s.
+        assert_eq!(model_stride_for(300.0, &at(10_000.0, 1_000)), 3000);
     }
 }

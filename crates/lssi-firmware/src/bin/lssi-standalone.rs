@@ -1,6 +1,7 @@
 //! The standalone instrument on QEMU's `mps2-an386`: samples its "sensor" (a recording in
 //! PSRAM, see `lssi_firmware::mps2`) by TIMER0, identifies, and reports Model and Health
-//! frames on UART0 every second by itself; a host may connect at any time and query or
+//! frames on UART0 by itself (every second; every minute, with a new model every 5 minutes,
+//! at a harvester's row rates: [`LOW_POWER_ROW_HZ`]); a host may connect at any time and query or
 //! reconfigure (`lssi monitor`). The application logic is lssi-device's `standalone`
 //! module, shared with the STM32F411 board (crates/lssi-board-f411).
 //!
@@ -22,7 +23,8 @@
 //! instead of in one wake-up of a few hundred milliseconds.
 //!
 //! When the recording ends, the last model (a screening of every sample, as `lssi identify`
-//! makes) and a Health frame go out, the UART drains and QEMU exits with status 0.
+//! makes; sliced like the rest, the timer going on as the slicer's clock) and a Health frame
+//! go out, the UART drains and QEMU exits with status 0.
 //!
 //! Built with the `system` feature, it is the two-channel instrument: each conversion reads
 //! x and the voltage V across the harvester's load (the recording's electrical channel),
@@ -159,14 +161,17 @@ static RX_LOST: AtomicU32 = AtomicU32::new(0);
 /// interrupts taken in between included): the longest wake-up, what a harvester's storage
 /// capacitor must carry at run current.
 static AWAKE_MAX: AtomicU32 = AtomicU32::new(0);
-/// The same once the recording ended (QEMU's recording only: the final screening, which no
-/// row interrupts, runs in one wake-up).
+/// The same once the recording ended (QEMU's recording only: the final screening, sliced
+/// like the rest, the timer going on as the slicer's clock).
 static AWAKE_MAX_ENDED: AtomicU32 = AtomicU32::new(0);
 /// `wfi`s executed (wake-ups).
 static SLEEPS: AtomicU32 = AtomicU32::new(0);
 /// Clock ticks awake while sampling, all wake-ups together (what the energy figure of
 /// scripts/firmware-bench.sh takes: rows, conversions, frames and screenings).
 static AWAKE_TOTAL: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
+/// Clock ticks awake after the recording ended (the final screening, sliced, and its
+/// frames): what a screening costs, as the sliced screening's own clock time is not.
+static AWAKE_ENDED: Mutex<core::cell::Cell<u64>> = Mutex::new(core::cell::Cell::new(0));
 /// The clock when the core last woke.
 static WOKE: AtomicU32 = AtomicU32::new(0);
 /// TIMER0's interrupts so far (conversions, or their times in an interval): the slicer
@@ -174,6 +179,8 @@ static WOKE: AtomicU32 = AtomicU32::new(0);
 static TICKS: AtomicU32 = AtomicU32::new(0);
 /// The sampling timer stopped (the recording ended): the slicer sleeps no more.
 static STOPPED: AtomicBool = AtomicBool::new(false);
+/// TIMER0's interrupts when the recording ended (the timer goes on after it).
+static TICKS_ENDED: AtomicU32 = AtomicU32::new(0);
 /// Times the slicer put thread mode to sleep until the next row.
 static SLICES: AtomicU32 = AtomicU32::new(0);
 
@@ -186,6 +193,46 @@ pub const SLICE_TICKS: u32 = 25_000;
 /// a harvester forced at 3.4 Hz (eveh, Ω = 21.4 rad/s), 10 a period at 20 Hz. The ADC
 /// (the recording's rate) is decimated to it by a whole factor.
 pub const DEFAULT_ROW_HZ: f64 = 200.0;
+
+/// Rows a second up to which the image takes itself to be on a harvester's power (the
+/// rates `lssi identify` proposes for harvesters: 50 samples a period of a 3–20 Hz line):
+/// it then runs a scheduled screening, and reports a new model, only about every
+/// [`MODEL_INTERVAL_S`]. Above it (a bench instrument at kHz rates) every scheduled
+/// screening runs.
+pub const LOW_POWER_ROW_HZ: f64 = 1000.0;
+
+/// Seconds between the models a device on a harvester's power screens and reports (the
+/// scheduled screenings in between are left out whole; the rows, the K re-choice and so the
+/// models made are the same bit for bit). A screening at eveh's configuration is ≈ 7.5 M
+/// instructions; one every 48 s (`lssi identify`'s 10 000 rows at 210 Hz) was 37 % of the
+/// instructions on top of the rows (scripts/firmware-power.sh). A harvester changes over
+/// weeks: a model every 5 minutes tracks it.
+pub const MODEL_INTERVAL_S: f64 = 300.0;
+
+/// Seconds between the unsolicited Model and Health frames of a device on a harvester's
+/// power (every second above [`LOW_POWER_ROW_HZ`]). A frame costs the core tens of
+/// thousands of instructions (encoding, CRC, a UART interrupt a byte): at 210 rows a second
+/// a Model and a Health every second were ≈ 0.2 of the instructions of the rows
+/// (scripts/firmware-power.sh). A host's Query is answered at once either way.
+pub const LOW_POWER_REPORT_S: u32 = 60;
+
+/// Clock ticks between the unsolicited reports for `config`.
+fn report_ticks(config: &Config) -> u32 {
+    if config.sample_period * LOW_POWER_ROW_HZ >= 1.0 {
+        BoardClock::HZ.saturating_mul(LOW_POWER_REPORT_S)
+    } else {
+        BoardClock::HZ
+    }
+}
+
+/// The stride of scheduled screenings for `config` (see [`LOW_POWER_ROW_HZ`]).
+fn model_stride(config: &Config) -> u32 {
+    if config.sample_period * LOW_POWER_ROW_HZ >= 1.0 {
+        lssi_device::standalone::model_stride_for(MODEL_INTERVAL_S, config)
+    } else {
+        1
+    }
+}
 
 /// The CIC order of the decimation (see lssi_device::decimate): −57 dB on what folds onto
 /// a tenth of the row rate.
@@ -320,6 +367,7 @@ fn main() -> ! {
     });
     let base = *flavour::base(&mut config);
     let row_hz = 1.0 / base.sample_period;
+    SHARED.set_model_stride(model_stride(&base));
     defmt::info!(
         "lssi standalone: {=u32} conversions at {=f64} Hz, decimated by {=u32} (CIC order {=u8}) to rows at {=f64} Hz, window {=usize}, screening every {=u32}",
         recording.len,
@@ -330,8 +378,12 @@ fn main() -> ! {
         base.window,
         base.screening_period
     );
+    defmt::info!(
+        "a model every {=u32} scheduled screening(s)",
+        SHARED.model_stride()
+    );
     let mut reporter: Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot> =
-        Reporter::new(config, row_hz as f32, BoardClock::HZ);
+        Reporter::new(config, row_hz as f32, report_ticks(&base));
     reporter.set_adc(rate, CIC_ORDER, decimator.time_offset(rate));
     // A duty cycle: windows of identification, Model and Health at the end of each, the
     // sensor left alone in between (the sampling interrupt drops the recording's samples
@@ -424,8 +476,11 @@ fn main() -> ! {
 
 /// The recording is done: waits for the UART to send everything, logs the figures, exits.
 fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
+    // Taken first: the logging below is not the device's work.
+    let awake_ended = critical_section::with(|cs| AWAKE_ENDED.borrow(cs).get())
+        + u64::from(BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed)));
     while !TX_IDLE.load(Ordering::Acquire) || !mps2::uart_tx_ready() {
-        cortex_m::asm::wfi();
+        sleep();
     }
     let c = &SHARED.counters;
     let status = SHARED.status();
@@ -457,7 +512,16 @@ fn finish(reporter: &Reporter<WINDOW, DEFAULT_TERMS, CHANNELS, Shot>) -> ! {
     defmt::info!(
         "awake while sampling: {=u64} ticks over {=u32} sampling interrupts",
         critical_section::with(|cs| AWAKE_TOTAL.borrow(cs).get()),
-        TICKS.load(Ordering::Relaxed)
+        TICKS_ENDED.load(Ordering::Relaxed)
+    );
+    defmt::info!(
+        "awake after the recording ended: {=u64} ticks (the final screening, sliced, and its frames)",
+        awake_ended
+    );
+    defmt::info!(
+        "screenings run while sampling: {=u32} (a model every {=u32} scheduled screening(s))",
+        reporter.screenings_run,
+        SHARED.model_stride()
     );
     platform::exit(platform::EXIT_SUCCESS)
 }
@@ -468,6 +532,10 @@ fn sleep() {
     let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
     if STOPPED.load(Ordering::Relaxed) {
         AWAKE_MAX_ENDED.fetch_max(awake, Ordering::Relaxed);
+        critical_section::with(|cs| {
+            let total = AWAKE_ENDED.borrow(cs);
+            total.set(total.get() + u64::from(awake));
+        });
     } else {
         AWAKE_MAX.fetch_max(awake, Ordering::Relaxed);
         critical_section::with(|cs| {
@@ -500,7 +568,7 @@ fn slicer(on: bool) {
 #[exception]
 fn SysTick() {
     let awake = BoardClock.now().wrapping_sub(WOKE.load(Ordering::Relaxed));
-    if awake < SLICE_TICKS || STOPPED.load(Ordering::Relaxed) {
+    if awake < SLICE_TICKS {
         return;
     }
     let factor = critical_section::with(|cs| {
@@ -514,12 +582,12 @@ fn SysTick() {
     loop {
         let slept = cortex_m::interrupt::free(|_| {
             let waiting = TICKS.load(Ordering::Relaxed).wrapping_sub(start) < factor;
-            if waiting && !STOPPED.load(Ordering::Relaxed) {
+            if waiting {
                 sleep();
             }
             waiting
         });
-        if !slept || STOPPED.load(Ordering::Relaxed) {
+        if !slept {
             break;
         }
     }
@@ -541,7 +609,9 @@ impl Transport for Link {
         for &b in bytes {
             while self.tx.enqueue(b).is_err() {
                 kick_tx();
-                cortex_m::asm::wfi();
+                // Asleep while the UART drains the ring (counted as asleep: the core waits
+                // in WFI, which the awake total took for work before).
+                sleep();
             }
         }
         kick_tx();
@@ -559,6 +629,11 @@ fn kick_tx() {
 fn on_timer() {
     mps2::clear_sampling_irq();
     TICKS.fetch_add(1, Ordering::Relaxed);
+    // After the recording the timer goes on as the slicer's clock (the final screening is
+    // sliced like the rest): it counts, and samples nothing.
+    if STOPPED.load(Ordering::Relaxed) {
+        return;
+    }
     let stamp = BoardClock.now();
     // The identify task is woken only when a row is made (once every decimation factor
     // conversions), and at the end.
@@ -573,7 +648,7 @@ fn on_timer() {
             sensor.sampler.convert(stamp, reading, &SHARED)
         } else {
             if sensor.sampler.end() {
-                mps2::stop_sampling();
+                TICKS_ENDED.store(TICKS.load(Ordering::Relaxed), Ordering::Relaxed);
                 STOPPED.store(true, Ordering::Relaxed);
             }
             true
