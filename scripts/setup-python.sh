@@ -2,7 +2,7 @@
 # The Python package: a virtual environment in .venv with the pinned tools
 # (crates/lssi-py/requirements.txt), the `lssi` package built by maturin and installed into
 # it, and the `lssi` command built (the tests compare the package with it).
-#   bash scripts/setup-python.sh && .venv/bin/python -m pytest crates/lssi-py/tests -q
+#   bash scripts/setup-python.sh && .venv/bin/python -m pytest crates/lssi-py/tests -q -n auto
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
