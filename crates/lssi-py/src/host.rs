@@ -384,6 +384,7 @@ pub fn system_data(c: SystemColumns) -> Result<SystemData, String> {
             u: c.u,
             columns,
         },
+        second: None,
         electrical,
         x_from_v,
     })

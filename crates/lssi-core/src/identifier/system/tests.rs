@@ -167,6 +167,7 @@ fn config(window: usize, input: bool) -> SystemConfig {
         },
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 2,
+        displacements: 1,
     }
 }
 
@@ -198,6 +199,8 @@ fn identify<T: Real>(config: SystemConfig, points: &[[f64; 4]]) -> SystemModel<T
     for q in points {
         let e = [T::from_f64(q[2])];
         id.push(&SystemSample {
+            x2: None,
+            v2: None,
             t: q[0],
             x: T::from_f64(q[1]),
             v: None,
@@ -465,6 +468,8 @@ fn bad_samples_are_rejected_and_counted() {
     let mut id: Box<SystemIdentifier<f64, 256, 16, 2, 2>> =
         Box::new(SystemIdentifier::new(config(63, false)).expect("valid"));
     let sample = |t: f64, x: f64, e: &'static [f64]| SystemSample {
+        x2: None,
+        v2: None,
         t,
         x,
         v: None,
@@ -481,6 +486,8 @@ fn bad_samples_are_rejected_and_counted() {
         (sample(0.004, 0.0, &[0.0]), Rejection::OutOfOrder),
         (
             SystemSample {
+                x2: None,
+                v2: None,
                 u: Some(1.0),
                 ..sample(0.01, 0.0, &[0.0])
             },
@@ -514,8 +521,8 @@ fn a_coil_current_gives_its_own_equation() {
     c.electrical = [Some(Electrical::Current), None];
     let model = identify::<f64>(c, &points);
     let rate = Target::Rate(Electrical::Current);
-    let i = StateTerm::Monomial([0, 0, 1, 0]);
-    let v = StateTerm::Monomial([0, 1, 0, 0]);
+    let i = StateTerm::Monomial([0, 0, 1, 0, 0, 0]);
+    let v = StateTerm::Monomial([0, 1, 0, 0, 0, 0]);
     let terms: Vec<StateTerm> = model.active(rate).map(|(t, _)| t).collect();
     assert_eq!(terms, [v, i], "{}", text(&model));
     let coefficient = |target, term| model.coefficient(target, term).expect("in the library");
@@ -654,6 +661,8 @@ fn a_slot_and_a_memory() {
     for q in &points[..5000] {
         let e = [q[2] as f32];
         let s = SystemSample {
+            x2: None,
+            v2: None,
             t: q[0],
             x: q[1] as f32,
             v: None,
@@ -666,6 +675,8 @@ fn a_slot_and_a_memory() {
     for q in &points {
         let e = [q[2] as f32];
         let s = SystemSample {
+            x2: None,
+            v2: None,
             t: q[0],
             x: q[1] as f32,
             v: None,
@@ -721,6 +732,8 @@ fn a_measured_velocity_gives_both_equations() {
         for q in &points {
             let e = [q[2]];
             id.push(&SystemSample {
+                x2: None,
+                v2: None,
                 t: q[0],
                 x: q[1],
                 v: Some(q[4]),
@@ -825,6 +838,8 @@ fn a_deferred_screening_is_the_inline_one() {
     for q in &points {
         let e = [q[2] as f32];
         let s = SystemSample {
+            x2: None,
+            v2: None,
             t: q[0],
             x: q[1] as f32,
             v: None,
