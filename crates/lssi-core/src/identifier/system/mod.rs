@@ -62,9 +62,9 @@
 //! `SystemConfig::displacements` 2 (a two-degree-of-freedom harvester: a primary mass x1 and
 //! a secondary beam x2 on it) adds the rings of x2 (and v2), the states x2, v2 and the
 //! equation x2'' (second in the model, after x1'', before the electrical ones). The shared
-//! library is then linear in every state, with the displacements' monomials x1^a·x2^b up to
-//! `poly_order` (the velocities' nonlinear terms would make order 3 34 monomials): with
-//! order 3, the constant, one V, one harmonic and u, 16 terms, so `SystemIdentifier<f32,
+//! library is then linear in every state, with each displacement's own powers x1^k, x2^k up
+//! to `poly_order` (all the monomials of four states would make order 3 34 terms): with
+//! order 3, the constant, one V, one harmonic and u, 13 terms, so `SystemIdentifier<f32,
 //! 256, 16, 3, 3>` holds x1, x2, V (its size: `memory_of_the_two_displacement_identifier`).
 //!
 //! # What the data must hold
