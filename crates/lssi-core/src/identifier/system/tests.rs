@@ -975,13 +975,22 @@ fn a_two_degree_of_freedom_harvester_gives_its_three_equations() {
     ];
     for (noise, seed, tolerance) in [(0.0, 0, 1.0), (0.01, 31, 5.0)] {
         let points = two_dof_record(SAMPLES, noise, seed);
+        // Clean: rows as they are, a short window; noisy: the host's choice from x1 (the weak
+        // form), as `lssi identify` makes it.
+        let config = if noise == 0.0 {
+            two_dof_config(15)
+        } else {
+            let x1: Vec<[f64; 4]> = points.iter().map(|q| [q[0], q[1], q[3], q[4]]).collect();
+            let mut c = tuned(&x1, true);
+            c.displacements = 2;
+            c.coupling_order = 1;
+            c
+        };
         for f32_run in [false, true] {
             let (names, targets, coefficients, supports) = if f32_run {
-                let m = identify_two_dof::<f32>(two_dof_config(15), &points);
-                summarise(&m)
+                summarise(&identify_two_dof::<f32>(config, &points))
             } else {
-                let m = identify_two_dof::<f64>(two_dof_config(15), &points);
-                summarise(&m)
+                summarise(&identify_two_dof::<f64>(config, &points))
             };
             assert_eq!(targets, ["x1''", "x2''", "V'"]);
             for (k, eq) in truth.iter().enumerate() {
