@@ -231,6 +231,8 @@ fn system(meter: &mut Meter) {
         let electrical = [e];
         let sample = SystemSample {
             t,
+            x2: None,
+            v2: None,
             x,
             v: None,
             u: None,
@@ -260,7 +262,10 @@ fn system(meter: &mut Meter) {
     if let Some(model) = id.model() {
         let voltage = Target::Rate(Electrical::Voltage);
         let kappa = model.coefficient(voltage, StateTerm::Monomial([0, 1, 0, 0, 0, 0]));
-        let chi = model.coefficient(Target::Acceleration, StateTerm::Monomial([0, 0, 1, 0, 0, 0]));
+        let chi = model.coefficient(
+            Target::Acceleration,
+            StateTerm::Monomial([0, 0, 1, 0, 0, 0]),
+        );
         defmt::info!(
             "bench-sys model: chi {=f32} (0.1), kappa {=f32} (-0.5)",
             chi.unwrap_or(f32::NAN),

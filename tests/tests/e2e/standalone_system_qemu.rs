@@ -108,6 +108,8 @@ fn host(config: SystemConfig, rows: &[(f64, f32, f32)]) -> (Vec<SystemSnapshot>,
         let e = [e];
         let sample = SystemSample {
             t,
+            x2: None,
+            v2: None,
             x,
             v: None,
             u: None,
@@ -281,7 +283,11 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
     for (what, term, truth) in [
         ("χ (x'' on V)", e, piezo.chi),
         ("c (x'' on v)", v, piezo.c),
-        ("k1 (x'' on x)", StateTerm::Monomial([1, 0, 0, 0, 0, 0]), piezo.k1),
+        (
+            "k1 (x'' on x)",
+            StateTerm::Monomial([1, 0, 0, 0, 0, 0]),
+            piezo.k1,
+        ),
         (
             "k3 (x'' on x^3)",
             StateTerm::Monomial([3, 0, 0, 0, 0, 0]),
