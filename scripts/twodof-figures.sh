@@ -50,8 +50,8 @@ for delta in ["0", "0.01", "0.05"]:
         for eq in truth["equations"]:
             target = eq["target"]
             found = got.get(target, {})
-            errors = [abs(found.get(t["term"], 0.0) - t["coef"]) / abs(t["coef"]) for t in eq["terms"]]
-            worst.setdefault(target, []).append(100 * max(errors))
+            errors = [(abs(found.get(t["term"], 0.0) - t["coef"]) / abs(t["coef"]), t["term"]) for t in eq["terms"]]
+            worst.setdefault(target, []).append((100 * max(errors)[0], max(errors)[1]))
             true_terms = {t["term"] for t in eq["terms"]}
             for term in found:
                 if term not in true_terms:
@@ -60,8 +60,10 @@ for delta in ["0", "0.01", "0.05"]:
     print(f"{label}: {passed}/5 passed the gate")
     for target, w in worst.items():
         s = spurious.get(target, [])
-        print(f"  {target:5} worst true-term error median {statistics.median(w):.3g} % (max {max(w):.3g} %), "
-              f"spurious: {', '.join(s) if s else 'none'}")
+        values = [e for e, _ in w]
+        terms = sorted({t for _, t in w})
+        print(f"  {target:5} worst true-term error median {statistics.median(values):.3g} % (max {max(values):.3g} %; "
+              f"worst term: {', '.join(terms)}), spurious: {', '.join(s) if s else 'none'}")
     for r in reasons:
         print("  " + r)
 EOF
