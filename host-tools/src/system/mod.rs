@@ -7,6 +7,13 @@
 //! shared library of the states x, v, V (and sin/cos kΩt, u). A recording without an
 //! electrical column takes the single-equation path, unchanged.
 //!
+//! Two displacements (a two-degree-of-freedom harvester: columns `x1` and `x2` where there is
+//! no `x`, or `--x-col X1,X2`; velocities `v1`, `v2` or `--v-col V1,V2`) give x1'' and x2''
+//! beside the electrical equations ([`SecondDisplacement`]); the report, the standard errors,
+//! the quality gate and `lssi simulate` cover every state. Refinement on simulation error
+//! and `--load-ohms` cover one displacement: the first says so in the report's note, the
+//! second is refused.
+//!
 //! The configuration is the single-equation one ([`crate::identify::configure`]: sample
 //! period, derivative window, weak form, Ω), derived from the mechanical channels. A
 //! velocity recorded without a displacement is integrated, its drift removed by a centred

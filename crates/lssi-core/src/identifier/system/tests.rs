@@ -1049,6 +1049,13 @@ fn memory_of_the_two_displacement_identifier() {
     std::println!(
         "SystemIdentifier<f32, 256, 16, 3, 4> (x1, x2, V, u): {two} B; one displacement with u, <f32, 256, 16, 2, 3>: {one} B"
     );
+    let snapshot_two = core::mem::size_of::<SystemSnapshot<f32, 16, 3>>();
+    let snapshot_one = core::mem::size_of::<SystemSnapshot<f32, 16, 2>>();
+    let device_one = core::mem::size_of::<SystemIdentifier<f32, 256, 16, 2, 2>>();
+    let device_two = core::mem::size_of::<SystemIdentifier<f32, 256, 16, 3, 3>>();
+    std::println!(
+        "snapshot <f32, 16, 3>: {snapshot_two} B against <f32, 16, 2>: {snapshot_one} B; without u: <f32, 256, 16, 3, 3> (x1, x2, V): {device_two} B against <f32, 256, 16, 2, 2> (x, V): {device_one} B"
+    );
     assert!(two < 16 * 1024, "{two}");
     // A sample without x2 where two displacements are configured is refused.
     let mut id: Box<SystemIdentifier<f64, 256, 16, 3, 4>> =
