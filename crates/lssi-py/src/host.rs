@@ -481,7 +481,9 @@ pub fn simulate_system(
     start: &[f64],
     bound: f64,
 ) -> Vec<Vec<f64>> {
-    let mut s = [0.0; 4];
+    // The simulator's state is (x, v, e₁, e₂, x2, v2); the Python package's systems have one
+    // displacement.
+    let mut s = [0.0; 6];
     for (k, q) in start.iter().enumerate().take(4) {
         s[k] = *q;
     }
