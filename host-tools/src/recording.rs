@@ -44,10 +44,13 @@ pub struct ColumnNames {
     /// Header name of the time column (seconds).
     #[arg(long = "t-col", value_name = "NAME", default_value = "t")]
     pub t: String,
-    /// Header name of the displacement column.
+    /// Header name of the displacement column; two names, X1,X2, for a two-degree-of-freedom
+    /// harvester with an electrical column (x1'' and x2''; used if columns 'x1' and 'x2'
+    /// exist and 'x' does not).
     #[arg(long = "x-col", value_name = "NAME", default_value = "x")]
     pub x: String,
-    /// Header name of the velocity column [used if a column 'v' exists].
+    /// Header name of the velocity column [used if a column 'v' exists]; with two
+    /// displacements two names, V1,V2 [used if 'v1' and 'v2' exist].
     #[arg(long = "v-col", value_name = "NAME")]
     pub v: Option<String>,
     /// Header name of the excitation column [used if a column 'u' exists].

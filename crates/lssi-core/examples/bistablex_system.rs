@@ -89,12 +89,15 @@ fn main() {
         base,
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: coupling,
+        displacements: 1,
     };
     let mut id: Box<SystemIdentifier<f64, 256, 16, 2, 4>> =
         Box::new(SystemIdentifier::new(config).expect("valid"));
     for i in 0..rows.len() {
         let ev = [e[i]];
         let _ = id.push(&SystemSample {
+            x2: None,
+            v2: None,
             t: rows[i][0],
             x: x[i],
             v: Some(v[i]),

@@ -27,8 +27,12 @@ use lssi_proto::{
     SystemEquation, SystemSnapshot, TermKind, WireElectrical, WireSystemConfig, WireTarget,
 };
 
-/// The wire form of a system's configuration; fails only for a window beyond `u16::MAX`.
+/// The wire form of a system's configuration; fails for a window beyond `u16::MAX` and for
+/// two displacements (the wire and the device take one).
 pub fn system_config_to_wire(config: &SystemConfig) -> Result<WireSystemConfig, WireError> {
+    if config.displacements != 1 {
+        return Err(WireError::Displacements(config.displacements));
+    }
     Ok(WireSystemConfig {
         base: config_to_wire(&config.base)?,
         electrical: config.electrical.map(|e| e.map(electrical_to_wire)),
@@ -42,6 +46,7 @@ pub fn system_config_from_wire(wire: &WireSystemConfig) -> SystemConfig {
         base: config_from_wire(&wire.base),
         electrical: wire.electrical.map(|e| e.map(electrical_from_wire)),
         coupling_order: wire.coupling_order,
+        displacements: 1,
     }
 }
 
@@ -76,7 +81,9 @@ pub const fn electrical_from_wire(e: WireElectrical) -> Electrical {
 pub const fn state_term_code(term: StateTerm) -> StateTermCode {
     let (kind, powers) = match term {
         StateTerm::Constant => (TermKind::Constant, [0; 4]),
-        StateTerm::Monomial(p) => (TermKind::Monomial, p),
+        // The wire's powers are those of x, v and the electrical channels: a device's system
+        // has one displacement (x2 and v2 are 0).
+        StateTerm::Monomial([px, pv, p2, p3, _, _]) => (TermKind::Monomial, [px, pv, p2, p3]),
         StateTerm::Sin(k) => (TermKind::Sin, [k, 0, 0, 0]),
         StateTerm::Cos(k) => (TermKind::Cos, [k, 0, 0, 0]),
         StateTerm::Input => (TermKind::Input, [0; 4]),
@@ -88,7 +95,9 @@ pub const fn state_term_code(term: StateTerm) -> StateTermCode {
 pub fn state_term_from_code(code: StateTermCode) -> Option<StateTerm> {
     match (code.kind, code.powers) {
         (TermKind::Constant, [0, 0, 0, 0]) => Some(StateTerm::Constant),
-        (TermKind::Monomial, p) if p.iter().any(|&d| d > 0) => Some(StateTerm::Monomial(p)),
+        (TermKind::Monomial, [px, pv, p2, p3]) if px + pv + p2 + p3 > 0 => {
+            Some(StateTerm::Monomial([px, pv, p2, p3, 0, 0]))
+        }
         (TermKind::Sin, [k, 0, 0, 0]) if k > 0 => Some(StateTerm::Sin(k)),
         (TermKind::Cos, [k, 0, 0, 0]) if k > 0 => Some(StateTerm::Cos(k)),
         (TermKind::Input, [0, 0, 0, 0]) => Some(StateTerm::Input),
@@ -99,7 +108,9 @@ pub fn state_term_from_code(code: StateTermCode) -> Option<StateTerm> {
 /// An equation's target as the wire names it.
 pub const fn target_to_wire(target: Target) -> WireTarget {
     match target {
-        Target::Acceleration => WireTarget::Acceleration,
+        // x2'' never reaches the wire: a device's system has one displacement (its
+        // configuration refuses two, see `system_config_to_wire`).
+        Target::Acceleration | Target::Acceleration2 => WireTarget::Acceleration,
         Target::Rate(e) => WireTarget::Rate(electrical_to_wire(e)),
     }
 }
@@ -174,6 +185,7 @@ pub fn system_model_from_snapshot<const P: usize>(
     let mut model = SystemModel {
         terms: heapless::Vec::new(),
         electrical: [None; lssi_core::library::MAX_ELECTRICAL],
+        displacements: 1,
         equations: heapless::Vec::new(),
         omega: snapshot.omega,
         samples: snapshot.samples,
@@ -329,6 +341,8 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             Ordering::Equal => {
                 for s in batch.samples.iter() {
                     let sample = SystemSample {
+                        x2: None,
+                        v2: None,
                         t: s.t,
                         x: s.x,
                         v: s.v,

@@ -54,6 +54,9 @@ pub enum WireError {
     /// A system snapshot's term code names no term of a shared library.
     #[cfg(feature = "system")]
     BadStateTerm(lssi_proto::StateTermCode),
+    /// A system with two displacements (the device and the wire take one).
+    #[cfg(feature = "system")]
+    Displacements(u8),
     /// A snapshot has a different number of coefficients than terms.
     CoefficientCount {
         /// Terms in the snapshot.
@@ -83,6 +86,11 @@ impl fmt::Display for WireError {
                 f,
                 "the system snapshot's term code {:?} {:?} is not a library term",
                 code.kind, code.powers
+            ),
+            #[cfg(feature = "system")]
+            WireError::Displacements(d) => write!(
+                f,
+                "the system has {d} displacements, but the device and the wire take one"
             ),
             WireError::BadTerm(code) => write!(
                 f,

@@ -70,6 +70,7 @@ fn system_config() -> SystemConfig {
         base: base(),
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 2,
+        displacements: 1,
     }
 }
 
@@ -230,6 +231,8 @@ fn system(meter: &mut Meter) {
         let electrical = [e];
         let sample = SystemSample {
             t,
+            x2: None,
+            v2: None,
             x,
             v: None,
             u: None,
@@ -258,8 +261,11 @@ fn system(meter: &mut Meter) {
     defmt::info!("bench-sys two_terms {=usize}", id.library().len());
     if let Some(model) = id.model() {
         let voltage = Target::Rate(Electrical::Voltage);
-        let kappa = model.coefficient(voltage, StateTerm::Monomial([0, 1, 0, 0]));
-        let chi = model.coefficient(Target::Acceleration, StateTerm::Monomial([0, 0, 1, 0]));
+        let kappa = model.coefficient(voltage, StateTerm::Monomial([0, 1, 0, 0, 0, 0]));
+        let chi = model.coefficient(
+            Target::Acceleration,
+            StateTerm::Monomial([0, 0, 1, 0, 0, 0]),
+        );
         defmt::info!(
             "bench-sys model: chi {=f32} (0.1), kappa {=f32} (-0.5)",
             chi.unwrap_or(f32::NAN),

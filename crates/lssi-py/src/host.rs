@@ -384,6 +384,7 @@ pub fn system_data(c: SystemColumns) -> Result<SystemData, String> {
             u: c.u,
             columns,
         },
+        second: None,
         electrical,
         x_from_v,
     })
@@ -480,7 +481,9 @@ pub fn simulate_system(
     start: &[f64],
     bound: f64,
 ) -> Vec<Vec<f64>> {
-    let mut s = [0.0; 4];
+    // The simulator's state is (x, v, e₁, e₂, x2, v2); the Python package's systems have one
+    // displacement.
+    let mut s = [0.0; 6];
     for (k, q) in start.iter().enumerate().take(4) {
         s[k] = *q;
     }

@@ -25,6 +25,7 @@ use crate::synth::harvester::{
 };
 use crate::synth::noise::NoiseKind;
 use crate::synth::paper::{PaperOptions, PaperParams, generate_paper};
+use crate::synth::twodof::{TwoDofOptions, diverged_at, generate_twodof};
 
 /// Arguments of `lssi gen`.
 #[derive(Debug, Clone, Args)]
@@ -48,6 +49,120 @@ pub enum GenModel {
     /// V ∝ x' with --coil negligible).
     #[command(alias = "em")]
     Electromagnetic(Box<EmArgs>),
+    /// A two-degree-of-freedom piezoelectric harvester (a primary mass on the base, a
+    /// secondary piezo beam on it, coupled by a spring), shaken broadband: x1'', x2'' and
+    /// V' = −λV − κx2'; columns t, x1, x2 (v1, v2), V, u.
+    #[command(name = "twodof", alias = "2dof")]
+    TwoDof(Box<TwoDofArgs>),
+}
+
+/// Arguments of `lssi gen twodof`.
+#[derive(Debug, Clone, Args)]
+pub struct TwoDofArgs {
+    /// Primary mass m1, kg.
+    #[arg(long, value_name = "KG", default_value_t = TwoDofOptions::default().mass1,
+          allow_negative_numbers = true)]
+    pub mass1: f64,
+    /// Secondary mass m2, kg.
+    #[arg(long, value_name = "KG", default_value_t = TwoDofOptions::default().mass2,
+          allow_negative_numbers = true)]
+    pub mass2: f64,
+    /// Primary natural frequency √(k1/m1)/2π, Hz.
+    #[arg(long = "freq1", value_name = "HZ", default_value_t = TwoDofOptions::default().frequency1_hz,
+          allow_negative_numbers = true)]
+    pub frequency1_hz: f64,
+    /// Secondary (coupling spring) frequency √(k_c/m2)/2π, Hz.
+    #[arg(long = "freq2", value_name = "HZ", default_value_t = TwoDofOptions::default().coupling_hz,
+          allow_negative_numbers = true)]
+    pub coupling_hz: f64,
+    /// Primary damping ratio ζ1.
+    #[arg(long, value_name = "ZETA", default_value_t = TwoDofOptions::default().zeta1,
+          allow_negative_numbers = true)]
+    pub zeta1: f64,
+    /// Secondary damping ratio ζ2.
+    #[arg(long, value_name = "ZETA", default_value_t = TwoDofOptions::default().zeta2,
+          allow_negative_numbers = true)]
+    pub zeta2: f64,
+    /// The primary's cubic stiffness per unit mass h, m⁻² s⁻² (0: linear).
+    #[arg(
+        long,
+        value_name = "PER_M2_S2",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub cubic: f64,
+    /// Electromechanical coupling θ, N/V [default: k² = θ²/(k_c C_p) = 0.025].
+    #[arg(long, value_name = "N_PER_V", allow_negative_numbers = true)]
+    pub theta: Option<f64>,
+    /// Piezo capacitance C_p, farads.
+    #[arg(long, value_name = "F", default_value_t = TwoDofOptions::default().capacitance,
+          allow_negative_numbers = true)]
+    pub capacitance: f64,
+    /// Load resistance R, ohms.
+    #[arg(long = "load-ohms", value_name = "OHMS", default_value_t = TwoDofOptions::default().load_ohms,
+          allow_negative_numbers = true)]
+    pub load_ohms: f64,
+    /// Base acceleration scale A, m/s² (six tones, RMS A/√2).
+    #[arg(long, value_name = "M_PER_S2", default_value_t = TwoDofOptions::default().amplitude,
+          allow_negative_numbers = true)]
+    pub amplitude: f64,
+    /// Mechanical channels to write: x (x1, x2) or xv (also v1, v2).
+    #[arg(long, value_enum, default_value_t = Observe::X)]
+    pub observe: Observe,
+    /// Sensor noise: Gaussian, RMS = D times each channel's RMS (0.01 = 1 %).
+    #[arg(
+        long,
+        value_name = "D",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub delta: f64,
+    /// Sample rate, Hz.
+    #[arg(long, value_name = "HZ", default_value_t = TwoDofOptions::default().rate,
+          allow_negative_numbers = true)]
+    pub rate: f64,
+    /// Last sample time, seconds.
+    #[arg(long = "t-end", value_name = "T", default_value_t = TwoDofOptions::default().t_end,
+          allow_negative_numbers = true)]
+    pub t_end: f64,
+    /// Initial x1, metres (released from rest there, uncharged).
+    #[arg(long, value_name = "METRES", default_value_t = TwoDofOptions::default().initial_displacement,
+          allow_negative_numbers = true)]
+    pub x0: f64,
+    /// Seed of the noise generator; the same seed gives the same file.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// The CSV file to write; the truth goes beside it with the extension .json.
+    #[arg(value_name = "OUT.csv")]
+    pub out: PathBuf,
+}
+
+impl TwoDofArgs {
+    /// The options these flags ask for.
+    pub fn options(&self) -> TwoDofOptions {
+        let wc = std::f64::consts::TAU * self.coupling_hz;
+        TwoDofOptions {
+            mass1: self.mass1,
+            mass2: self.mass2,
+            frequency1_hz: self.frequency1_hz,
+            coupling_hz: self.coupling_hz,
+            zeta1: self.zeta1,
+            zeta2: self.zeta2,
+            cubic: self.cubic,
+            theta: self
+                .theta
+                .unwrap_or_else(|| (0.025 * self.mass2 * wc * wc * self.capacitance).sqrt()),
+            capacitance: self.capacitance,
+            load_ohms: self.load_ohms,
+            amplitude: self.amplitude,
+            velocities: self.observe == Observe::Xv,
+            delta: self.delta,
+            rate: self.rate,
+            t_end: self.t_end,
+            initial_displacement: self.x0,
+            seed: self.seed,
+        }
+    }
 }
 
 /// What the piezoelectric and electromagnetic harvesters share.
@@ -484,7 +599,51 @@ pub fn run(args: &GenArgs) -> Result<(), CliError> {
         GenModel::Eveh(eveh) => run_eveh(eveh),
         GenModel::Piezo(piezo) => run_harvester(&piezo.options(), &piezo.common.out),
         GenModel::Electromagnetic(em) => run_harvester(&em.options(), &em.common.out),
+        GenModel::TwoDof(twodof) => run_twodof(&twodof.options(), &twodof.out),
     }
+}
+
+fn run_twodof(options: &TwoDofOptions, out: &std::path::Path) -> Result<(), CliError> {
+    options.validate().map_err(|error| {
+        let flag = match error.field {
+            "mass1" => "--mass1",
+            "mass2" => "--mass2",
+            "frequency1_hz" => "--freq1",
+            "coupling_hz" => "--freq2",
+            "zeta1" => "--zeta1",
+            "zeta2" => "--zeta2",
+            "cubic" => "--cubic",
+            "theta" => "--theta",
+            "capacitance" => "--capacitance",
+            "load_ohms" => "--load-ohms",
+            "amplitude" => "--amplitude",
+            "delta" => "--delta",
+            "rate" | "dt" => "--rate",
+            "t_end" => "--t-end",
+            "initial_displacement" => "--x0",
+            other => other,
+        };
+        CliError::from_option(error, flag)
+    })?;
+    let json = truth_path(out)?;
+    let generated = generate_twodof(options);
+    if let Some(t) = diverged_at(&generated) {
+        return Err(CliError::Diverged {
+            model: generated.truth.model.clone(),
+            t,
+        });
+    }
+    write_harvester(out, &json, &generated)?;
+    crate::outln!(
+        "wrote {} ({} samples of {} over {} s at {} Hz) and {}",
+        out.display(),
+        generated.t.len(),
+        generated.header().join(","),
+        options.t_end,
+        options.rate,
+        json.display()
+    );
+    Ok(())
 }
 
 fn run_harvester(options: &HarvesterOptions, out: &std::path::Path) -> Result<(), CliError> {

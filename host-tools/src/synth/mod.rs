@@ -1,6 +1,7 @@
 //! Synthetic recordings with a known equation, for testing and benchmarking the identifier:
 //! [`paper`] is the paper's eq. (17), [`eveh`] its harvester, eq. (19), and [`harvester`] the
-//! piezoelectric and electromagnetic harvesters with their electrical equation.
+//! piezoelectric and electromagnetic harvesters with their electrical equation, [`twodof`] a
+//! two-degree-of-freedom piezoelectric harvester (two displacements).
 //!
 //! Each generator is a pure function from options to [`Generated`] (no file I/O), so a benchmark
 //! can generate in memory and the `lssi gen` command only writes what it gets ([`files`]). The trajectories
@@ -24,6 +25,7 @@ pub mod noise;
 pub mod ode;
 pub mod paper;
 pub mod truth;
+pub mod twodof;
 
 use std::path::PathBuf;
 

@@ -7,6 +7,13 @@
 //! shared library of the states x, v, V (and sin/cos kΩt, u). A recording without an
 //! electrical column takes the single-equation path, unchanged.
 //!
+//! Two displacements (a two-degree-of-freedom harvester: columns `x1` and `x2` where there is
+//! no `x`, or `--x-col X1,X2`; velocities `v1`, `v2` or `--v-col V1,V2`) give x1'' and x2''
+//! beside the electrical equations ([`SecondDisplacement`]); the report, the standard errors,
+//! the quality gate and `lssi simulate` cover every state. Refinement on simulation error
+//! and `--load-ohms` cover one displacement: the first says so in the report's note, the
+//! second is refused.
+//!
 //! The configuration is the single-equation one ([`crate::identify::configure`]: sample
 //! period, derivative window, weak form, Ω), derived from the mechanical channels. A
 //! velocity recorded without a displacement is integrated, its drift removed by a centred
@@ -38,10 +45,10 @@ pub use report::SystemReport;
 pub const WINDOW_CAPACITY: usize = identify::WINDOW_CAPACITY;
 /// Shared-library capacity (terms).
 pub const TERM_CAPACITY: usize = 32;
-/// Equations: the mechanical one and up to two electrical ones.
-pub const EQUATIONS: usize = 3;
-/// Ring buffers: x, v, u and two electrical channels.
-pub const RINGS: usize = 5;
+/// Equations: one or two mechanical ones and up to two electrical ones.
+pub const EQUATIONS: usize = 4;
+/// Ring buffers: x, v, u, two electrical channels, x2 and v2.
+pub const RINGS: usize = 7;
 
 /// The host's system identifier.
 pub type HostSystemIdentifier<T> =
@@ -102,12 +109,27 @@ pub struct ElectricalChannel {
     pub values: Vec<f64>,
 }
 
+/// The second displacement of a two-degree-of-freedom recording (`x2`, and `v2` when the
+/// velocities are recorded).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SecondDisplacement {
+    /// Its header name.
+    pub x_name: String,
+    /// Its values.
+    pub x: Vec<f64>,
+    /// Its velocity's header name and values, when recorded (with v1).
+    pub v: Option<(String, Vec<f64>)>,
+}
+
 /// A recording with electrical channels: the mechanical part as a [`Recording`] (x
-/// integrated from v when the file has no x), and the electrical channels.
+/// integrated from v when the file has no x; x1 of two displacements), the second
+/// displacement if any, and the electrical channels.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SystemData {
-    /// The mechanical channels (t, x, v, u).
+    /// The mechanical channels (t, x, v, u); with two displacements x1 and v1.
     pub recording: Recording,
+    /// The second displacement (x2, v2) of a two-degree-of-freedom harvester.
+    pub second: Option<SecondDisplacement>,
     /// The electrical channels, in the library's order (V before i).
     pub electrical: Vec<ElectricalChannel>,
     /// When x is v integrated: the sentence saying how.
@@ -123,6 +145,98 @@ impl SystemData {
         }
         kinds
     }
+
+    /// Displacements: 1, or 2 with a second one.
+    pub fn displacements(&self) -> u8 {
+        1 + u8::from(self.second.is_some())
+    }
+
+    /// The mechanical states' names in the library's order of the core's states (x, v, then
+    /// x2, v2): `x`, `v`, or `x1`, `v1`, `x2`, `v2`.
+    pub fn mechanical_names(&self) -> Vec<&'static str> {
+        if self.second.is_some() {
+            vec!["x1", "v1", "x2", "v2"]
+        } else {
+            vec!["x", "v"]
+        }
+    }
+}
+
+/// The displacement and velocity columns a recording names for a system: one displacement
+/// (`x`, or `--x-col NAME`) or two (`x1` and `x2` when the header has them and no `x`, or
+/// `--x-col X1,X2`), and their velocities (`v`, or `v1` and `v2`, or `--v-col`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct MechanicalColumns {
+    x: Option<String>,
+    v: Option<String>,
+    second: Option<(String, Option<String>)>,
+}
+
+/// Resolves the displacement and velocity columns against the header; a bad spec is a
+/// one-sentence error.
+fn mechanical_columns(
+    path: &Path,
+    header: &[String],
+    columns: &ColumnNames,
+) -> Result<MechanicalColumns, CliError> {
+    let has = |name: &str| header.iter().any(|h| h == name);
+    let file = path.display();
+    let names = |flag: &str, spec: &str| -> Result<Vec<String>, CliError> {
+        let parts: Vec<String> = spec.split(',').map(|p| p.trim().to_owned()).collect();
+        if parts.len() > 2 || parts.iter().any(String::is_empty) {
+            return Err(CliError::Input(format!(
+                "{file}: {flag} {spec} names {} columns, but it takes one name, or two separated by a comma for a two-degree-of-freedom harvester (x1,x2).",
+                parts.len()
+            )));
+        }
+        Ok(parts)
+    };
+    let xs = if columns.x == "x" && !has("x") && has("x1") && has("x2") {
+        vec!["x1".to_owned(), "x2".to_owned()]
+    } else {
+        names("--x-col", &columns.x)?
+    };
+    let vs = match &columns.v {
+        Some(spec) => Some(names("--v-col", spec)?),
+        None if xs.len() == 2 => (has("v1") && has("v2")).then(|| vec!["v1".into(), "v2".into()]),
+        None => None,
+    };
+    if let Some(vs) = &vs
+        && vs.len() != xs.len()
+    {
+        return Err(CliError::Input(format!(
+            "{file}: {} displacement column(s) ({}) but {} velocity column(s) ({}): name one velocity per displacement with --v-col, or none.",
+            xs.len(),
+            xs.join(","),
+            vs.len(),
+            vs.join(",")
+        )));
+    }
+    if xs.len() == 2 {
+        for x in &xs {
+            if !has(x) {
+                return Err(CliError::Input(format!(
+                    "{file}: there is no column '{x}' (the displacements {}); the header has {}.",
+                    xs.join(","),
+                    header.join(", ")
+                )));
+            }
+        }
+        let (v1, v2) = match vs {
+            Some(v) => (Some(v[0].clone()), Some(v[1].clone())),
+            None => (None, None),
+        };
+        return Ok(MechanicalColumns {
+            x: Some(xs[0].clone()),
+            v: v1,
+            second: Some((xs[1].clone(), v2)),
+        });
+    }
+    Ok(MechanicalColumns {
+        x: Some(xs[0].clone()),
+        v: vs.map(|mut v| v.remove(0)),
+        second: None,
+    })
 }
 
 /// The header row's names, or `None` for an empty file.
@@ -175,6 +289,15 @@ pub fn read_if_system(
     let voltage = pick(&electrical.voltage, "V", "--V-col")?;
     let current = pick(&electrical.current, "i", "--i-col")?;
     if voltage.is_none() && current.is_none() {
+        let two =
+            columns.x.contains(',') || (columns.x == "x" && !has("x") && has("x1") && has("x2"));
+        if two {
+            return Err(CliError::Input(format!(
+                "{}: two displacements are identified as a harvester's system, which needs an electrical column ('V' or 'i', or one named by --V-col or --i-col); the header has {}.",
+                path.display(),
+                header.join(", ")
+            )));
+        }
         return Ok(None);
     }
     read_system(path, &header, columns, voltage, current).map(Some)
@@ -209,12 +332,28 @@ fn read_system(
         None => Ok(index(default)),
     };
     let t_col = required(&columns.t, "the time")?;
-    let x_col = if columns.x == "x" {
+    let mechanical = mechanical_columns(path, header, columns)?;
+    let x_name = mechanical.x.clone().unwrap_or_else(|| "x".to_owned());
+    let x_col = if x_name == "x" && mechanical.second.is_none() {
         index("x")
     } else {
-        Some(required(&columns.x, "the displacement")?)
+        Some(required(&x_name, "the displacement")?)
     };
-    let v_col = optional(&columns.v, "v", "the velocity")?;
+    let v_col = match (&mechanical.v, &mechanical.second) {
+        (Some(v), _) => Some(required(v, "the velocity")?),
+        (None, Some(_)) => None,
+        (None, None) => index("v"),
+    };
+    let second_cols = match &mechanical.second {
+        Some((x2, v2)) => Some((
+            required(x2, "the second displacement")?,
+            match v2 {
+                Some(v2) => Some(required(v2, "the second velocity")?),
+                None => None,
+            },
+        )),
+        None => None,
+    };
     let u_col = optional(&columns.u, "u", "the excitation")?;
     if x_col.is_none() && v_col.is_none() {
         return Err(CliError::Input(format!(
@@ -229,7 +368,11 @@ fn read_system(
     if let Some(i) = &current {
         e_cols.push((Electrical::Current, i.clone(), required(i, "the current")?));
     }
-    let wanted: Vec<usize> = [Some(t_col), x_col, v_col, u_col]
+    let (x2_col, v2_col) = match second_cols {
+        Some((x2, v2)) => (Some(x2), v2),
+        None => (None, None),
+    };
+    let wanted: Vec<usize> = [Some(t_col), x_col, v_col, u_col, x2_col, v2_col]
         .into_iter()
         .flatten()
         .chain(e_cols.iter().map(|e| e.2))
@@ -290,6 +433,11 @@ fn read_system(
             values: std::mem::take(&mut data[c]),
         })
         .collect();
+    let second = x2_col.map(|c| SecondDisplacement {
+        x_name: header[c].clone(),
+        x: std::mem::take(&mut data[c]),
+        v: v2_col.map(|c| (header[c].clone(), std::mem::take(&mut data[c]))),
+    });
     let names = ColumnNames {
         t: columns.t.clone(),
         x: x_col.map_or_else(|| "x".to_owned(), |c| header[c].clone()),
@@ -305,6 +453,7 @@ fn read_system(
             u,
             columns: names,
         },
+        second,
         electrical,
         x_from_v,
     })
@@ -383,6 +532,7 @@ pub fn configure(
         base,
         electrical: data.kinds(),
         coupling_order,
+        displacements: data.displacements(),
     };
     config
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, EQUATIONS, RINGS>()
@@ -407,6 +557,12 @@ pub fn run<T: Real>(
         e.clear();
         e.extend(data.electrical.iter().map(|c| T::from_f64(c.values[i])));
         let sample = SystemSample {
+            x2: data.second.as_ref().map(|s| T::from_f64(s.x[i])),
+            v2: data
+                .second
+                .as_ref()
+                .and_then(|s| s.v.as_ref())
+                .map(|(_, v)| T::from_f64(v[i])),
             t: r.t[i],
             x: T::from_f64(r.x[i]),
             v: r.v.as_ref().map(|v| T::from_f64(v[i])),
@@ -491,6 +647,13 @@ pub fn identify_system(
             requirement: "a positive resistance in ohms".into(),
         });
     }
+    if args.load_ohms.is_some() && data.second.is_some() {
+        return Err(CliError::Input(format!(
+            "{}: --load-ohms (the power analysis) covers a harvester with one displacement, and this recording has two ({}).",
+            data.recording.path.display(),
+            data.mechanical_names().join(", ")
+        )));
+    }
     let (config, estimated) = configure(data, options, args.coupling_order)?;
     let mut report = if options.f32 {
         run::<f32>(data, config, estimated)?
@@ -566,6 +729,10 @@ pub fn identify_command(
 /// Refines the report's model on simulation error ([`refine::refine_and_check`]) and says
 /// what was done.
 pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
+    if data.second.is_some() {
+        report.note = "not refined: refinement on simulation error covers one displacement, and this system has two; this is the streaming system identifier's model".into();
+        return;
+    }
     let Some(sim) = simulate::SystemSim::of_report(report) else {
         report.note = "not refined: the model has a term the simulator does not know; this is the streaming system identifier's model".into();
         return;

@@ -90,7 +90,7 @@ fn stable_equilibrium(sim: &SystemSim, mean: f64, span: f64) -> Option<(f64, f64
             .iter()
             .filter_map(|(t, c)| match t {
                 SimTerm::Constant => Some(*c),
-                SimTerm::Monomial([p, 0, 0, 0]) => Some(c * x.powi(i32::from(*p))),
+                SimTerm::Monomial([p, 0, 0, 0, 0, 0]) => Some(c * x.powi(i32::from(*p))),
                 _ => None,
             })
             .sum()
@@ -170,11 +170,11 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
     };
     let measured = &data.electrical[kv].values;
     h.power_measured_w = mean_power(measured, ohms).unwrap_or(f64::NAN);
-    let mut powers = [0u8; 4];
+    let mut powers = [0u8; 6];
     powers[2 + kv] = 1;
     let v_term = SimTerm::Monomial(powers);
     let lambda = -coefficient(&sim, 1 + kv, v_term);
-    let kappa = -coefficient(&sim, 1 + kv, SimTerm::Monomial([0, 1, 0, 0]));
+    let kappa = -coefficient(&sim, 1 + kv, SimTerm::Monomial([0, 1, 0, 0, 0, 0]));
     let chi = coefficient(&sim, 0, v_term);
     let r = &data.recording;
     let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;

@@ -30,6 +30,7 @@
 
 use serde::Serialize;
 
+use super::simulate::State;
 use super::simulate::{SimTerm, SystemSim, first_state};
 use super::{SystemData, SystemReport};
 pub use crate::identify::quality::{
@@ -93,7 +94,7 @@ impl SystemQuality {
     }
 }
 
-/// Smoothed estimates of a recording's states (x, v, e₁, e₂) at any sample: a local
+/// Smoothed estimates of a recording's states (x, v, e₁, e₂, x2, v2) at any sample: a local
 /// polynomial (Savitzky–Golay) fit of a window centred there, chosen as the standard errors'
 /// window is ([`lssi_core::tuning::choose_window`] on x, or v when recorded).
 pub struct StateEstimator<'a> {
@@ -131,7 +132,7 @@ impl<'a> StateEstimator<'a> {
     }
 
     /// The states at sample `i` (`None` near the ends or for non-finite values).
-    pub fn at(&self, i: usize) -> Option<[f64; 4]> {
+    pub fn at(&self, i: usize) -> Option<State> {
         let a = i.checked_sub(self.len / 2)?;
         let b = a + self.len;
         let r = &self.data.recording;
@@ -146,9 +147,17 @@ impl<'a> StateEstimator<'a> {
             ),
             None => (self.taps.apply(0, x, &[]), self.taps.apply(1, x, &[])),
         };
-        let mut s = [xh, vh, 0.0, 0.0];
+        let mut s = [xh, vh, 0.0, 0.0, 0.0, 0.0];
         for (k, e) in self.data.electrical.iter().enumerate().take(2) {
             s[2 + k] = self.taps.apply(0, &e.values[a..b], &[]);
+        }
+        if let Some(second) = &self.data.second {
+            let x2 = &second.x[a..b];
+            s[4] = self.taps.apply(0, x2, &[]);
+            s[5] = match &second.v {
+                Some((_, v2)) => self.taps.apply(0, &v2[a..b], &[]),
+                None => self.taps.apply(1, x2, &[]),
+            };
         }
         s.iter().all(|q| q.is_finite()).then_some(s)
     }
@@ -157,9 +166,16 @@ impl<'a> StateEstimator<'a> {
 /// The recorded states: (index in the simulated state, name, values).
 pub fn recorded_states(data: &SystemData) -> Vec<(usize, String, &[f64])> {
     let r = &data.recording;
-    let mut out = vec![(0, "x".to_owned(), r.x.as_slice())];
+    let names = data.mechanical_names();
+    let mut out = vec![(0, names[0].to_owned(), r.x.as_slice())];
     if let Some(v) = &r.v {
-        out.push((1, "v".to_owned(), v.as_slice()));
+        out.push((1, names[1].to_owned(), v.as_slice()));
+    }
+    if let Some(second) = &data.second {
+        out.push((4, "x2".to_owned(), second.x.as_slice()));
+        if let Some((_, v2)) = &second.v {
+            out.push((5, "v2".to_owned(), v2.as_slice()));
+        }
     }
     for (k, e) in data.electrical.iter().enumerate().take(2) {
         out.push((2 + k, e.kind.symbol().to_owned(), e.values.as_slice()));
@@ -397,6 +413,22 @@ pub fn conditioning(
         .map(|c| low_pass(&finite(&c.values), cut))
         .collect();
     let u = r.u.as_ref().map(|u| low_pass(&finite(u), cut));
+    let (x2, v2) = match &data.second {
+        Some(second) => {
+            let x2 = low_pass(&finite(&second.x), cut);
+            let v2 = match &second.v {
+                Some((_, v2)) => low_pass(&finite(v2), cut),
+                None => (0..n)
+                    .map(|i| {
+                        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+                        (x2[b] - x2[a]) / (t[b] - t[a])
+                    })
+                    .collect(),
+            };
+            (x2, v2)
+        }
+        None => (vec![0.0; n], vec![0.0; n]),
+    };
     let edge = (period.ceil() as usize).min(n / 8);
     let rows = edge..n - edge;
     sim.equations
@@ -421,6 +453,8 @@ pub fn conditioning(
                                 v[i],
                                 e.first().map_or(0.0, |c| c[i]),
                                 e.get(1).map_or(0.0, |c| c[i]),
+                                x2[i],
+                                v2[i],
                             ];
                             term.eval(&s, t[i], u.as_ref().map_or(0.0, |u| u[i]))
                         })
@@ -438,14 +472,17 @@ pub fn conditioning(
                         collinear: involved
                             .iter()
                             .filter(|_| dynamics)
-                            .map(|&i| terms[i].name(&sim.electrical))
+                            .map(|&i| terms[i].name_in(&sim.electrical, sim.displacements))
                             .collect(),
                     }
                 }
                 None => Conditioning {
                     target: target.clone(),
                     condition: Some(f64::INFINITY),
-                    collinear: terms.iter().map(|t| t.name(&sim.electrical)).collect(),
+                    collinear: terms
+                        .iter()
+                        .map(|t| t.name_in(&sim.electrical, sim.displacements))
+                        .collect(),
                 },
             }
         })
@@ -485,6 +522,16 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
         q.failures.push(why);
         return q;
     }
+    if let Some(second) = &data.second
+        && let Some(why) = constant_channel(&second.x_name, &second.x)
+    {
+        q.failures
+            .push(why.replace("electrical channel", "displacement").replace(
+                "it carries no electrical dynamics",
+                "it carries no dynamics",
+            ));
+        return q;
+    }
     for e in &data.electrical {
         if let Some(why) = constant_channel(e.kind.symbol(), &e.values) {
             q.failures.push(why);
@@ -493,8 +540,8 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     }
     for e in &report.equations {
         if e.terms.is_empty() {
-            q.failures.push(if e.target == "x''" {
-                "the x'' equation has no terms".to_owned()
+            q.failures.push(if e.target.ends_with("''") {
+                format!("the {} equation has no terms", e.target)
             } else {
                 let s = e.target.trim_end_matches('\'');
                 format!(
@@ -593,7 +640,7 @@ pub fn coupling_both_ways(
     report: &SystemReport,
     data: &SystemData,
 ) -> Option<String> {
-    let live = |eq: &Vec<(SimTerm, f64)>| -> Vec<[u8; 4]> {
+    let live = |eq: &Vec<(SimTerm, f64)>| -> Vec<[u8; 6]> {
         eq.iter()
             .filter(|(_, c)| *c != 0.0)
             .filter_map(|(t, _)| match t {
@@ -602,33 +649,65 @@ pub fn coupling_both_ways(
             })
             .collect()
     };
-    let mechanical = sim.equations.first()?;
-    if live(mechanical).iter().any(|m| m[2] > 0 || m[3] > 0) {
+    let d = sim.displacements;
+    // Every displacement's equation: a coupling term in any of them answers the check.
+    if sim
+        .equations
+        .iter()
+        .take(d)
+        .any(|eq| live(eq).iter().any(|m| m[2] > 0 || m[3] > 0))
+    {
         return None;
     }
-    for (k, eq) in sim.equations.iter().enumerate().skip(1).take(2) {
+    for (k, eq) in sim.equations.iter().enumerate().skip(d).take(2) {
         let moved = live(eq)
             .iter()
-            .any(|m| (m[0] > 0 || m[1] > 0) && m[2] == 0 && m[3] == 0);
+            .any(|m| (m[0] > 0 || m[1] > 0 || m[4] > 0 || m[5] > 0) && m[2] == 0 && m[3] == 0);
         if !moved {
             continue;
         }
-        let mut state = [0u8; 4];
-        state[1 + k] = 1;
-        let mut terms: Vec<SimTerm> = mechanical
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .map(|(t, _)| *t)
-            .collect();
-        terms.push(SimTerm::Monomial(state));
-        let (beta, se) = super::report::refit(report.sample_period, data, 0, &terms)?;
-        let (b, e) = (*beta.last()?, *se.last()?);
-        let name = SimTerm::Monomial(state).name(&sim.electrical);
+        let mut state = [0u8; 6];
+        state[2 + k - d] = 1;
+        let name = SimTerm::Monomial(state).name_in(&sim.electrical, d);
+        // The mechanical equation the refitted coupling is strongest in.
+        let mut best: Option<(f64, f64, f64, usize)> = None;
+        for m in 0..d {
+            let mut terms: Vec<SimTerm> = sim.equations[m]
+                .iter()
+                .filter(|(_, c)| *c != 0.0)
+                .map(|(t, _)| *t)
+                .collect();
+            terms.push(SimTerm::Monomial(state));
+            let Some((beta, se)) = super::report::refit(report.sample_period, data, m, &terms)
+            else {
+                continue;
+            };
+            let (Some(&b), Some(&e)) = (beta.last(), se.last()) else {
+                continue;
+            };
+            let t = b.abs() / e;
+            if best.is_none_or(|(bt, ..)| t > bt || !bt.is_finite()) {
+                best = Some((t, b, e, m));
+            }
+        }
+        let (t, b, e, m) = best?;
+        let mechanical_target = report.equations.get(m).map_or("x''", |e| e.target.as_str());
         let target = report
             .equations
             .get(k)
             .map_or("the electrical equation", |e| e.target.as_str());
-        let t = b.abs() / e;
+        if d > 1 {
+            // Two displacements: the coupling may sit in either; name the one refitted.
+            return Some(if t < MIN_COUPLING_T || !t.is_finite() {
+                format!(
+                    "no displacement's equation has a term in {name} although {target} depends on the motion, and this recording cannot tell {name}'s share (refitted with the {mechanical_target} equation's terms, its coefficient is {b:.3e} ± {e:.1e})"
+                )
+            } else {
+                format!(
+                    "no displacement's equation has a term in {name} although {target} depends on the motion, and refitted with the {mechanical_target} equation's terms {name}'s coefficient is {b:.3e} ± {e:.1e}, {t:.0} standard errors from 0: the selection dropped the coupling"
+                )
+            });
+        }
         return Some(if t < MIN_COUPLING_T || !t.is_finite() {
             format!(
                 "x'' has no term in {name} although {target} depends on the motion: a harvester's coupling acts both ways, and this recording cannot tell {name}'s share from the stiffness, damping and forcing (refitted with the x'' equation's terms, its coefficient is {b:.3e} ± {e:.1e}); the printed x'' holds for this forcing alone (a transient, a sweep or a broadband excitation separates the coupling)"

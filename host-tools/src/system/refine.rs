@@ -31,7 +31,7 @@ use serde::Serialize;
 
 use super::SystemData;
 use super::quality::{StateEstimator, horizon_samples, recorded_states};
-use super::simulate::SystemSim;
+use super::simulate::{State, SystemSim};
 
 /// Levenberg–Marquardt iterations of a joint fit, at most.
 const ITERATIONS: usize = 25;
@@ -98,7 +98,7 @@ struct Problem<'a> {
     /// The states simulated (2 + the electrical ones).
     dim: usize,
     /// Each state's scale (its finite-difference step's).
-    scale: [f64; 4],
+    scale: State,
     bound: f64,
 }
 
@@ -122,7 +122,7 @@ impl<'a> Problem<'a> {
             (f.iter().map(|q| (q - m).powi(2)).sum::<f64>() / n).sqrt()
         };
         let mut observed = Vec::new();
-        let mut scale = [0.0; 4];
+        let mut scale = [0.0; 6];
         for (j, _, s) in recorded_states(data) {
             let d = sd(&s[from..to]);
             if !(d > 0.0 && d.is_finite()) {
@@ -171,7 +171,7 @@ impl<'a> Problem<'a> {
         &self,
         sim: &SystemSim,
         (a, b): (usize, usize),
-        start: &[f64; 4],
+        start: &State,
     ) -> Option<Vec<f64>> {
         let r = &self.data.recording;
         let u = r.u.as_deref().map_or(&[][..], |u| &u[a..b]);
@@ -201,7 +201,7 @@ fn blocks(
     p: &Problem,
     c: &[f64],
     seg: (usize, usize),
-    start: &[f64; 4],
+    start: &State,
     states_only: bool,
 ) -> Option<Blocks> {
     let sim = p.sim(c);
@@ -243,14 +243,14 @@ fn blocks(
 /// end (for the standard errors).
 struct Fit {
     c: Vec<f64>,
-    starts: Vec<[f64; 4]>,
+    starts: Vec<State>,
     cost: f64,
     samples: usize,
     iterations: usize,
     schur: Option<DMatrix<f64>>,
 }
 
-fn cost_of(p: &Problem, c: &[f64], segs: &[(usize, usize)], starts: &[[f64; 4]]) -> Option<f64> {
+fn cost_of(p: &Problem, c: &[f64], segs: &[(usize, usize)], starts: &[State]) -> Option<f64> {
     let sim = p.sim(c);
     segs.par_iter()
         .zip(starts)
@@ -276,7 +276,7 @@ fn fit(
     p: &Problem,
     c0: &[f64],
     segs: &[(usize, usize)],
-    starts0: Vec<[f64; 4]>,
+    starts0: Vec<State>,
     states_only: bool,
     iterations: usize,
 ) -> Option<Fit> {
@@ -343,7 +343,7 @@ fn fit(
                 .zip(dc.iter().chain(std::iter::repeat(&0.0)))
                 .map(|(a, b)| a - b)
                 .collect();
-            let new_starts: Vec<[f64; 4]> = all
+            let new_starts: Vec<State> = all
                 .iter()
                 .zip(&inverses)
                 .zip(&starts)
@@ -420,7 +420,7 @@ fn pass(
         return None;
     }
     // The states alone: each segment its own fit (a diverging segment is dropped).
-    let alone: Vec<Option<([f64; 4], f64)>> = segs
+    let alone: Vec<Option<(State, f64)>> = segs
         .par_iter()
         .zip(&starts)
         .map(|(&seg, &st)| {

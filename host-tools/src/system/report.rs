@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use super::SystemData;
 use super::power::Harvester;
-use super::simulate::SimTerm;
+use super::simulate::{SimTerm, State};
 use crate::identify::{SolutionReport, TermReport};
 
 /// What a report of the streaming model (`--no-refine`) says of it.
@@ -104,7 +104,8 @@ impl SystemReport {
         let omega = model.omega;
         let name = |j: usize| {
             let mut s = String::new();
-            let _ = model.terms[j].write_name(&mut s, omega, &model.electrical);
+            let _ =
+                model.terms[j].write_name_in(&mut s, omega, &model.electrical, model.displacements);
             s
         };
         let names = |support: u32| -> Vec<String> {
@@ -116,8 +117,11 @@ impl SystemReport {
         let equations = model
             .equations
             .iter()
-            .map(|e| EquationReport {
-                target: e.target.to_string(),
+            .enumerate()
+            .map(|(k, e)| EquationReport {
+                target: model
+                    .target_name(k)
+                    .map_or_else(|| e.target.to_string(), |t| t.to_string()),
                 terms: (0..model.terms.len())
                     .filter(|j| e.support() & (1 << j) != 0)
                     .map(|j| TermReport {
@@ -138,7 +142,11 @@ impl SystemReport {
                 selected: e.selected,
             })
             .collect();
-        let mut states = vec!["x".to_owned(), "v".to_owned()];
+        let mut states: Vec<String> = data
+            .mechanical_names()
+            .into_iter()
+            .map(str::to_owned)
+            .collect();
         states.extend(data.electrical.iter().map(|e| e.kind.symbol().to_owned()));
         let warnings: Vec<String> = data.x_from_v.iter().cloned().collect();
         let base = &config.base;
@@ -307,11 +315,11 @@ pub fn number(v: f64) -> String {
     }
 }
 
-/// One regression row of the host's estimates: states (x, v, e₁, e₂), targets (x'', e₁',
-/// e₂'), time and input.
+/// One regression row of the host's estimates: states (x, v, e₁, e₂, x2, v2), targets in
+/// the equations' order (x'' (x1'', x2''), e₁', e₂'), time and input.
 struct Row {
-    states: [f64; 4],
-    targets: [f64; 3],
+    states: State,
+    targets: [f64; 4],
     t: f64,
     u: f64,
 }
@@ -343,12 +351,34 @@ fn rows(data: &SystemData, len: usize, degree: usize, dt: f64) -> Option<Vec<Row
                 taps.apply(2, x, &[]),
             ),
         };
-        let mut states = [xh, vh, 0.0, 0.0];
-        let mut targets = [ah, 0.0, 0.0];
+        let mut states = [xh, vh, 0.0, 0.0, 0.0, 0.0];
+        let mut targets = [ah, 0.0, 0.0, 0.0];
+        let d = usize::from(data.displacements());
+        if let Some(second) = &data.second {
+            let x2 = &second.x[window.clone()];
+            let (x2h, v2h, a2h) = match &second.v {
+                Some((_, v2)) => {
+                    let v2 = &v2[window.clone()];
+                    (
+                        taps.apply(0, x2, &[]),
+                        taps.apply(0, v2, &[]),
+                        taps.apply(1, v2, &[]),
+                    )
+                }
+                None => (
+                    taps.apply(0, x2, &[]),
+                    taps.apply(1, x2, &[]),
+                    taps.apply(2, x2, &[]),
+                ),
+            };
+            states[4] = x2h;
+            states[5] = v2h;
+            targets[1] = a2h;
+        }
         for (k, e) in data.electrical.iter().enumerate().take(2) {
             let w = &e.values[window.clone()];
             states[2 + k] = taps.apply(0, w, &[]);
-            targets[1 + k] = taps.apply(1, w, &[]);
+            targets[d + k] = taps.apply(1, w, &[]);
         }
         let u = r.u.as_ref().map_or(0.0, |u| u[c]);
         let row = Row {

@@ -2,7 +2,9 @@
 //! `"equations"` (what `lssi identify --json` prints for a recording with an electrical
 //! channel).
 //!
-//! The state is (x, v, e₁[, e₂]) with x' = v, v' = the x'' equation, eₖ' = its equation;
+//! The state is (x, v, e₁, e₂, x2, v2) (the core's order; e₂, x2 and v2 0 where there are
+//! none) with x' = v, v' = the x'' equation, eₖ' = its equation, and with two displacements
+//! x2' = v2, v2' = the x2'' equation;
 //! classical RK4 on the recording's time grid, u interpolated linearly between samples (its
 //! midpoint at half steps). The initial state is the file's first row: x (or x integrated
 //! from v, as `identify` does), v (measured, or x's first-derivative estimate over the
@@ -12,6 +14,9 @@
 use std::fmt::Write as _;
 
 use lssi_core::library::Electrical;
+
+/// A simulated state: (x, v, e₁, e₂, x2, v2), as the core's [`lssi_core::library::STATES`].
+pub type State = [f64; 6];
 
 use super::{SimulateSystemArgs, SystemData, SystemReport};
 use crate::error::CliError;
@@ -23,8 +28,8 @@ use crate::recording::ColumnNames;
 pub enum SimTerm {
     /// 1.
     Constant,
-    /// x^p₀ v^p₁ e₁^p₂ e₂^p₃.
-    Monomial([u8; 4]),
+    /// x^p₀ v^p₁ e₁^p₂ e₂^p₃ x2^p₄ v2^p₅.
+    Monomial([u8; 6]),
     /// sin(W t), W in rad/s.
     Sin(f64),
     /// cos(W t).
@@ -34,8 +39,9 @@ pub enum SimTerm {
 }
 
 impl SimTerm {
-    /// The term a name stands for (`1`, `u`, `x^3`, `x*V`, `cos(6.28319t)`), with
-    /// `electrical` the system's electrical states in order; `None` for a name it is not.
+    /// The term a name stands for (`1`, `u`, `x^3`, `x*V`, `x1*x2^2`, `cos(6.28319t)`), with
+    /// `electrical` the system's electrical states in order (`x1`, `v1` are `x`, `v`);
+    /// `None` for a name it is not.
     pub fn parse(name: &str, electrical: &[Electrical]) -> Option<Self> {
         match name {
             "1" => return Some(SimTerm::Constant),
@@ -57,15 +63,17 @@ impl SimTerm {
                 });
             }
         }
-        let mut powers = [0u8; 4];
+        let mut powers = [0u8; 6];
         for factor in name.split('*') {
             let (symbol, power) = match factor.split_once('^') {
                 Some((s, p)) => (s, p.parse::<u8>().ok()?),
                 None => (factor, 1),
             };
             let state = match symbol {
-                "x" => 0,
-                "v" => 1,
+                "x" | "x1" => 0,
+                "v" | "v1" => 1,
+                "x2" => 4,
+                "v2" => 5,
                 s => 2 + electrical.iter().position(|e| e.symbol() == s)?,
             };
             powers[state] = powers[state].checked_add(power)?;
@@ -74,7 +82,7 @@ impl SimTerm {
     }
 
     /// Its value at state `s`, time `t`, input `u`.
-    pub fn eval(&self, s: &[f64; 4], t: f64, u: f64) -> f64 {
+    pub fn eval(&self, s: &State, t: f64, u: f64) -> f64 {
         match *self {
             SimTerm::Constant => 1.0,
             SimTerm::Monomial(p) => s
@@ -89,8 +97,13 @@ impl SimTerm {
         }
     }
 
-    /// Its name, as the reports spell it.
+    /// Its name, as the reports spell it (of a system with one displacement).
     pub fn name(&self, electrical: &[Electrical]) -> String {
+        self.name_in(electrical, 1)
+    }
+
+    /// Its name in a system of `displacements` displacements (`x1*x2^2` with two).
+    pub fn name_in(&self, electrical: &[Electrical], displacements: usize) -> String {
         match *self {
             SimTerm::Constant => "1".into(),
             SimTerm::Input => "u".into(),
@@ -109,13 +122,19 @@ impl SimTerm {
             }
             SimTerm::Monomial(p) => {
                 let mut out = String::new();
-                for (k, &q) in p.iter().enumerate() {
+                let two = displacements > 1;
+                for k in [0, 1, 4, 5, 2, 3] {
+                    let q = p[k];
                     if q == 0 {
                         continue;
                     }
                     let symbol = match k {
+                        0 if two => "x1",
+                        1 if two => "v1",
                         0 => "x",
                         1 => "v",
+                        4 => "x2",
+                        5 => "v2",
                         k => electrical.get(k - 2).map_or("e", |e| e.symbol()),
                     };
                     if !out.is_empty() {
@@ -132,9 +151,12 @@ impl SimTerm {
     }
 }
 
-/// A system model to simulate: x'' first, then each electrical channel's equation.
+/// A system model to simulate: x'' first (x1'' then x2'' with two displacements), then each
+/// electrical channel's equation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SystemSim {
+    /// Displacements: 1, or 2 (x2'' is then the second equation).
+    pub displacements: usize,
     /// The electrical states, in order.
     pub electrical: Vec<Electrical>,
     /// Each equation's terms and coefficients.
@@ -144,7 +166,12 @@ pub struct SystemSim {
 impl SystemSim {
     /// The model of a report.
     pub fn of_report(report: &SystemReport) -> Option<Self> {
-        let electrical: Vec<Electrical> = report.states[2..]
+        let displacements = if report.states.iter().any(|s| s == "x2") {
+            2
+        } else {
+            1
+        };
+        let electrical: Vec<Electrical> = report.states[2 * displacements..]
             .iter()
             .map(|s| match s.as_str() {
                 "V" => Some(Electrical::Voltage),
@@ -163,6 +190,7 @@ impl SystemSim {
             })
             .collect::<Option<Vec<_>>>()?;
         Some(Self {
+            displacements,
             electrical,
             equations,
         })
@@ -175,20 +203,27 @@ impl SystemSim {
             .get("equations")
             .and_then(|e| e.as_array())
             .ok_or_else(|| bad("it has no \"equations\" list".into()))?;
+        let target = |k: usize| equations.get(k).and_then(|e| e.get("target")?.as_str());
+        let displacements = match (target(0), target(1)) {
+            (Some("x''"), _) => 1,
+            (Some("x1''"), Some("x2''")) => 2,
+            _ => {
+                return Err(bad(
+                    "its first equation is not x'' (nor x1'' followed by x2'')".into(),
+                ));
+            }
+        };
         let mut electrical = Vec::new();
-        for e in equations.iter().skip(1) {
-            match e.get("target").and_then(|t| t.as_str()) {
+        for k in displacements..equations.len() {
+            match target(k) {
                 Some("V'") => electrical.push(Electrical::Voltage),
                 Some("i'") => electrical.push(Electrical::Current),
                 other => {
                     return Err(bad(format!(
-                        "an equation's target is {other:?}, but after x'' a system's are \"V'\" or \"i'\""
+                        "an equation's target is {other:?}, but after the displacements' a system's are \"V'\" or \"i'\""
                     )));
                 }
             }
-        }
-        if equations.first().and_then(|e| e.get("target")?.as_str()) != Some("x''") {
-            return Err(bad("its first equation is not x''".into()));
         }
         let mut out = Vec::new();
         for e in equations {
@@ -213,6 +248,7 @@ impl SystemSim {
             out.push(eq);
         }
         Ok(Self {
+            displacements,
             electrical,
             equations: out,
         })
@@ -227,45 +263,56 @@ impl SystemSim {
     }
 
     /// The state's derivative.
-    fn rate(&self, s: &[f64; 4], t: f64, u: f64) -> [f64; 4] {
+    fn rate(&self, s: &State, t: f64, u: f64) -> State {
         let f = |k: usize| -> f64 {
             self.equations.get(k).map_or(0.0, |eq| {
                 eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
             })
         };
-        [s[1], f(0), f(1), f(2)]
+        let d = self.displacements;
+        if d > 1 {
+            [s[1], f(0), f(d), f(d + 1), s[5], f(1)]
+        } else {
+            [s[1], f(0), f(1), f(2), 0.0, 0.0]
+        }
+    }
+
+    /// The index in [`State`] of each simulated state, in the order the reports list them:
+    /// x, v (x1, v1, x2, v2 with two displacements), then the electrical ones.
+    pub fn state_indices(&self) -> Vec<usize> {
+        let mut out = vec![0, 1];
+        if self.displacements > 1 {
+            out.extend([4, 5]);
+        }
+        out.extend((0..self.electrical.len()).map(|k| 2 + k));
+        out
     }
 
     /// The free run over the grid `t` from `start`, driven by `u` (one value per time;
     /// empty: 0). States after a divergence (non-finite, or beyond 1e6 times the largest
     /// initial magnitude plus `bound`) are NaN. Returns one state per time.
-    pub fn run(&self, t: &[f64], u: &[f64], start: [f64; 4], bound: f64) -> Vec<[f64; 4]> {
+    pub fn run(&self, t: &[f64], u: &[f64], start: State, bound: f64) -> Vec<State> {
         let mut out = Vec::with_capacity(t.len());
         let mut s = start;
         let limit = 1e6 * (start.iter().fold(0.0f64, |m, q| m.max(q.abs())) + bound);
         let at = |i: usize| u.get(i).copied().unwrap_or(0.0);
         let mut dead = false;
         for i in 0..t.len() {
-            out.push(if dead { [f64::NAN; 4] } else { s });
+            out.push(if dead { [f64::NAN; 6] } else { s });
             if i + 1 == t.len() || dead {
                 continue;
             }
             let (t0, h) = (t[i], t[i + 1] - t[i]);
             let (u0, u1) = (at(i), at(i + 1));
             let um = 0.5 * (u0 + u1);
-            let add = |a: &[f64; 4], k: &[f64; 4], c: f64| -> [f64; 4] {
-                [
-                    a[0] + c * k[0],
-                    a[1] + c * k[1],
-                    a[2] + c * k[2],
-                    a[3] + c * k[3],
-                ]
+            let add = |a: &State, k: &State, c: f64| -> State {
+                core::array::from_fn(|j| a[j] + c * k[j])
             };
             let k1 = self.rate(&s, t0, u0);
             let k2 = self.rate(&add(&s, &k1, 0.5 * h), t0 + 0.5 * h, um);
             let k3 = self.rate(&add(&s, &k2, 0.5 * h), t0 + 0.5 * h, um);
             let k4 = self.rate(&add(&s, &k3, h), t0 + h, u1);
-            for j in 0..4 {
+            for j in 0..6 {
                 s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
             }
             if s.iter().any(|q| !q.is_finite() || q.abs() > limit) {
@@ -276,23 +323,31 @@ impl SystemSim {
     }
 }
 
-/// The recording's first state (x, v, e₁, e₂): v measured, or x's slope over its first
-/// samples (a line through the first five).
-pub fn first_state(data: &SystemData) -> [f64; 4] {
+/// The recording's first state (x, v, e₁, e₂, x2, v2): v measured, or x's slope over its
+/// first samples (a line through the first five).
+pub fn first_state(data: &SystemData) -> State {
     let r = &data.recording;
+    let slope = |x: &[f64]| {
+        let n = r.len().min(5);
+        let (t, x) = (&r.t[..n], &x[..n]);
+        let tm = t.iter().sum::<f64>() / n as f64;
+        let xm = x.iter().sum::<f64>() / n as f64;
+        let sxy: f64 = t.iter().zip(x).map(|(a, b)| (a - tm) * (b - xm)).sum();
+        let sxx: f64 = t.iter().map(|a| (a - tm).powi(2)).sum();
+        if sxx > 0.0 { sxy / sxx } else { 0.0 }
+    };
     let v0 = match &r.v {
         Some(v) => v[0],
-        None => {
-            let n = r.len().min(5);
-            let (t, x) = (&r.t[..n], &r.x[..n]);
-            let tm = t.iter().sum::<f64>() / n as f64;
-            let xm = x.iter().sum::<f64>() / n as f64;
-            let sxy: f64 = t.iter().zip(x).map(|(a, b)| (a - tm) * (b - xm)).sum();
-            let sxx: f64 = t.iter().map(|a| (a - tm).powi(2)).sum();
-            if sxx > 0.0 { sxy / sxx } else { 0.0 }
-        }
+        None => slope(&r.x),
     };
-    let mut s = [r.x[0], v0, 0.0, 0.0];
+    let mut s = [r.x[0], v0, 0.0, 0.0, 0.0, 0.0];
+    if let Some(second) = &data.second {
+        s[4] = second.x[0];
+        s[5] = match &second.v {
+            Some((_, v)) => v[0],
+            None => slope(&second.x),
+        };
+    }
     for (k, e) in data.electrical.iter().enumerate().take(2) {
         s[2 + k] = e.values[0];
     }
@@ -374,24 +429,40 @@ pub fn simulate_command(
             requirement: "a positive resistance in ohms".into(),
         });
     }
+    if usize::from(data.displacements()) != sim.displacements {
+        return Err(CliError::Input(format!(
+            "{}: the model has {} displacement(s), but the file has {} ({}).",
+            file.display(),
+            sim.displacements,
+            data.displacements(),
+            data.mechanical_names()
+                .iter()
+                .step_by(2)
+                .copied()
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
     let start = first_state(&data);
     let states = sim.run(&r.t, &u, start, rms(&r.x) + 1.0);
-    let column = |k: usize| -> Vec<f64> { states.iter().map(|s| s[k]).collect() };
-    let names: Vec<String> = ["x".to_owned(), "v".to_owned()]
+    let indices = sim.state_indices();
+    let column = |k: usize| -> Vec<f64> { states.iter().map(|s| s[indices[k]]).collect() };
+    let names: Vec<String> = data
+        .mechanical_names()
         .into_iter()
+        .map(str::to_owned)
         .chain(sim.electrical.iter().map(|e| e.symbol().to_owned()))
         .collect();
     let diverged = states.iter().position(|s| !s[0].is_finite());
     let mut text = format!(
-        "{}: simulated from the first row (x {}, v {}{}) over {} samples, driven by {}\n",
+        "{}: simulated from the first row ({}) over {} samples, driven by {}\n",
         file.display(),
-        start[0],
-        start[1],
-        sim.electrical
+        names
             .iter()
-            .enumerate()
-            .map(|(k, e)| format!(", {} {}", e.symbol(), start[2 + k]))
-            .collect::<String>(),
+            .zip(&indices)
+            .map(|(name, &j)| format!("{name} {}", start[j]))
+            .collect::<Vec<_>>()
+            .join(", "),
         r.len(),
         if sim.uses_input() {
             "the file's u"
@@ -406,10 +477,12 @@ pub fn simulate_command(
         ));
     }
     text.push_str("  state  NRMSE      RMS simulated  RMS recorded\n");
-    let recorded: Vec<Option<&Vec<f64>>> = [Some(&r.x), r.v.as_ref()]
-        .into_iter()
-        .chain(data.electrical.iter().map(|e| Some(&e.values)))
-        .collect();
+    let mut recorded: Vec<Option<&Vec<f64>>> = vec![Some(&r.x), r.v.as_ref()];
+    if let Some(second) = &data.second {
+        recorded.push(Some(&second.x));
+        recorded.push(second.v.as_ref().map(|(_, v)| v));
+    }
+    recorded.extend(data.electrical.iter().map(|e| Some(&e.values)));
     for (k, name) in names.iter().enumerate() {
         let sim_k = column(k);
         match recorded[k] {
@@ -431,7 +504,7 @@ pub fn simulate_command(
             .iter()
             .position(|e| *e == Electrical::Voltage)
     {
-        let sim_v = column(2 + k);
+        let sim_v = column(2 * sim.displacements + k);
         let p_sim = rms(&sim_v).powi(2) / ohms;
         let p_rec = rms(&data.electrical[k].values).powi(2) / ohms;
         text.push_str(&format!(
@@ -444,8 +517,8 @@ pub fn simulate_command(
         let mut csv = format!("t,{}\n", names.join(","));
         for (i, s) in states.iter().enumerate() {
             let _ = write!(csv, "{}", r.t[i]);
-            for q in &s[..names.len()] {
-                let _ = write!(csv, ",{q}");
+            for &j in &indices {
+                let _ = write!(csv, ",{}", s[j]);
             }
             csv.push('\n');
         }
@@ -486,11 +559,35 @@ mod tests {
     fn a_linear_decay_follows_its_exponential() {
         // V' = -2 V from V = 1: exp(-2t).
         let sim = SystemSim {
+            displacements: 1,
             electrical: vec![Electrical::Voltage],
-            equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0]), -2.0)]],
+            equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0, 0, 0]), -2.0)]],
         };
         let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
-        let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0], 1.0);
+        let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1.0);
         assert!((s[100][2] - (-2.0f64).exp()).abs() < 1e-8);
+    }
+
+    /// Two displacements: x2 is the fifth state, x2'' the second equation, names x1, x2.
+    #[test]
+    fn two_displacements_run_in_their_places() {
+        let e = [Electrical::Voltage];
+        for name in ["x1", "v2", "x1*x2^2", "x2*V", "v1"] {
+            let t = SimTerm::parse(name, &e).unwrap();
+            assert_eq!(t.name_in(&e, 2), name);
+        }
+        // x1'' = 0, x2'' = -x2 (x2 = cos t from 1), V' = v2.
+        let x2 = SimTerm::parse("x2", &e).unwrap();
+        let v2 = SimTerm::parse("v2", &e).unwrap();
+        let sim = SystemSim {
+            displacements: 2,
+            electrical: vec![Electrical::Voltage],
+            equations: vec![vec![], vec![(x2, -1.0)], vec![(v2, 1.0)]],
+        };
+        let t: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.001).collect();
+        let s = sim.run(&t, &[], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1.0);
+        assert!((s[1000][4] - 1.0f64.cos()).abs() < 1e-9);
+        assert!((s[1000][2] - (1.0f64.cos() - 1.0)).abs() < 1e-9);
+        assert_eq!(sim.state_indices(), [0, 1, 4, 5, 2]);
     }
 }

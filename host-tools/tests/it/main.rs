@@ -36,3 +36,4 @@ mod system_gate;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;
+mod twodof;

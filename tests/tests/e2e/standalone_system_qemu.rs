@@ -69,6 +69,7 @@ fn config(period: f64, window: usize) -> SystemConfig {
         },
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 1,
+        displacements: 1,
     }
 }
 
@@ -107,6 +108,8 @@ fn host(config: SystemConfig, rows: &[(f64, f32, f32)]) -> (Vec<SystemSnapshot>,
         let e = [e];
         let sample = SystemSample {
             t,
+            x2: None,
+            v2: None,
             x,
             v: None,
             u: None,
@@ -263,8 +266,8 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
         target_from_wire(got.equations[1].target),
         Target::Rate(Electrical::Voltage)
     );
-    let v = StateTerm::Monomial([0, 1, 0, 0]);
-    let e = StateTerm::Monomial([0, 0, 1, 0]);
+    let v = StateTerm::Monomial([0, 1, 0, 0, 0, 0]);
+    let e = StateTerm::Monomial([0, 0, 1, 0, 0, 0]);
     for (what, got, truth) in [
         ("κ (V' on v)", coefficient(1, v), -piezo.kappa),
         ("λ (V' on V)", coefficient(1, e), -piezo.lambda),
@@ -280,10 +283,14 @@ fn standalone_two_channel_device_identifies_the_harvesters_system_as_the_host_do
     for (what, term, truth) in [
         ("χ (x'' on V)", e, piezo.chi),
         ("c (x'' on v)", v, piezo.c),
-        ("k1 (x'' on x)", StateTerm::Monomial([1, 0, 0, 0]), piezo.k1),
+        (
+            "k1 (x'' on x)",
+            StateTerm::Monomial([1, 0, 0, 0, 0, 0]),
+            piezo.k1,
+        ),
         (
             "k3 (x'' on x^3)",
-            StateTerm::Monomial([3, 0, 0, 0]),
+            StateTerm::Monomial([3, 0, 0, 0, 0, 0]),
             piezo.k3,
         ),
     ] {

@@ -47,6 +47,7 @@ fn config(window: usize) -> SystemConfig {
         },
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 2,
+        displacements: 1,
     }
 }
 
@@ -59,6 +60,8 @@ fn host(config: SystemConfig, points: &[PiezoPoint]) -> (Vec<SystemSnapshot>, Sy
     for p in points {
         let e = [p.e as f32];
         let sample = SystemSample {
+            x2: None,
+            v2: None,
             t: p.t,
             x: p.x as f32,
             v: None,
@@ -260,8 +263,8 @@ fn piezo_harvester_through_qemu_firmware_equals_host_f32_system() {
                 .expect("in the library");
             f64::from(v_eq.coefficients[j])
         };
-        let kappa = coef(StateTerm::Monomial([0, 1, 0, 0]));
-        let lambda = coef(StateTerm::Monomial([0, 0, 1, 0]));
+        let kappa = coef(StateTerm::Monomial([0, 1, 0, 0, 0, 0]));
+        let lambda = coef(StateTerm::Monomial([0, 0, 1, 0, 0, 0]));
         assert!(
             (kappa + piezo.kappa).abs() < 0.02 * piezo.kappa,
             "{name}: κ {kappa}"

@@ -482,7 +482,8 @@ pub(crate) fn powi<T: Real>(x: T, n: u8) -> T {
 mod states;
 mod term;
 pub use states::{
-    Electrical, MAX_COUPLING_ORDER, MAX_ELECTRICAL, STATES, StateLibrary, StateLibraryConfig,
+    Electrical, MAX_COUPLING_ORDER, MAX_DISPLACEMENTS, MAX_ELECTRICAL, STATES, StateLibrary,
+    StateLibraryConfig,
     StateLibraryError, StateTerm, StateTermName,
 };
 pub use term::{Term, TermName};

@@ -89,6 +89,8 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
         };
         let electrical = [reading.e.unwrap_or(f32::NAN)];
         let sample = SystemSample {
+            x2: None,
+            v2: None,
             t: index as f64 * period + offset,
             x: reading.x,
             v: reading.v,

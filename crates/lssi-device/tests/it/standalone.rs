@@ -559,6 +559,7 @@ fn the_two_channel_instrument_reports_the_systems_own_models() {
         },
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 1,
+        displacements: 1,
     };
     let points = Piezo::bistable().simulate(40_000, adc_dt);
 
@@ -625,6 +626,8 @@ fn the_two_channel_instrument_reports_the_systems_own_models() {
         };
         let e = [row[1]];
         let sample = SystemSample {
+            x2: None,
+            v2: None,
             t: rows as f64 * config.base.sample_period + offset,
             x: row[0],
             v: None,

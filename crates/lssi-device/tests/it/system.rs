@@ -37,6 +37,7 @@ fn config(window: usize, screening_period: u32) -> SystemConfig {
         },
         electrical: [Some(Electrical::Voltage), None],
         coupling_order: 2,
+        displacements: 1,
     }
 }
 
@@ -47,6 +48,8 @@ fn direct(config: SystemConfig, points: &[PiezoPoint]) -> (Vec<SystemSnapshot>, 
     for p in points {
         let e = [p.e as f32];
         let sample = SystemSample {
+            x2: None,
+            v2: None,
             t: p.t,
             x: p.x as f32,
             v: None,
@@ -144,7 +147,7 @@ fn a_piezo_harvester_through_the_device_equals_the_system_identifier_bit_for_bit
         let coef = |m: [u8; 4]| {
             f64::from(
                 model
-                    .coefficient(voltage, StateTerm::Monomial(m))
+                    .coefficient(voltage, StateTerm::Monomial([m[0], m[1], m[2], m[3], 0, 0]))
                     .expect("in the library"),
             )
         };

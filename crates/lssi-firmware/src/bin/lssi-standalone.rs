@@ -106,6 +106,7 @@ mod flavour {
             base,
             electrical: [Some(Electrical::Voltage), None],
             coupling_order: 1,
+            displacements: 1,
         }
     }
 

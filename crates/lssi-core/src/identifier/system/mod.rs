@@ -55,8 +55,17 @@
 //! What the single-equation path has and this one has not (yet): the k-neighbour smoothing
 //! of the states (`Config::smoothing` is ignored), the search of the sensor origins
 //! (`Config::offsets` is ignored: a constant term takes a static offset, but a misplaced
-//! origin of x shows as even powers), the excitation gate, the noise correction (refused),
-//! and several displacements (one mechanical equation).
+//! origin of x shows as even powers), the excitation gate, the noise correction (refused).
+//!
+//! # Two displacements
+//!
+//! `SystemConfig::displacements` 2 (a two-degree-of-freedom harvester: a primary mass x1 and
+//! a secondary beam x2 on it) adds the rings of x2 (and v2), the states x2, v2 and the
+//! equation x2'' (second in the model, after x1'', before the electrical ones). The shared
+//! library is then linear in every state, with each displacement's own powers x1^k, x2^k up
+//! to `poly_order` (all the monomials of four states would make order 3 34 terms): with
+//! order 3, the constant, one V, one harmonic and u, 13 terms, so `SystemIdentifier<f32,
+//! 256, 16, 3, 3>` holds x1, x2, V (its size: `memory_of_the_two_displacement_identifier`).
 //!
 //! # What the data must hold
 //!
@@ -76,6 +85,7 @@
 //!                    ..Config::default() },
 //!     electrical: [Some(Electrical::Voltage), None],
 //!     coupling_order: 1,
+//!     displacements: 1,
 //! };
 //! let mut id: Box<SystemIdentifier<f64, 64, 16>> = Box::new(SystemIdentifier::new(config).unwrap());
 //! // x'' = -x - 0.1 v + 0.2 V + cos t, V' = -V - 0.5 v, by semi-implicit Euler.
@@ -83,7 +93,7 @@
 //! for i in 0..1_000_000u32 {
 //!     let t = f64::from(i) * dt;
 //!     if i % 20 == 0 {
-//!         id.push(&SystemSample { t, x, v: None, u: None, electrical: &[e] }).unwrap();
+//!         id.push(&SystemSample { t, x, x2: None, v: None, v2: None, u: None, electrical: &[e] }).unwrap();
 //!     }
 //!     v += dt * (-x - 0.1 * v + 0.2 * e + t.cos());
 //!     x += dt * v;
@@ -91,7 +101,7 @@
 //! }
 //! id.screen();
 //! let model = id.model().unwrap();
-//! let kappa = model.coefficient(Target::Rate(Electrical::Voltage), StateTerm::Monomial([0, 1, 0, 0]));
+//! let kappa = model.coefficient(Target::Rate(Electrical::Voltage), StateTerm::Monomial([0, 1, 0, 0, 0, 0]));
 //! assert!((kappa.unwrap() + 0.5).abs() < 0.01, "{kappa:?}");
 //! ```
 
@@ -110,7 +120,7 @@ use heapless::HistoryBuf;
 
 mod model;
 mod weak;
-pub use model::{Equation, SystemModel, Target};
+pub use model::{Equation, SystemModel, Target, TargetName};
 use weak::SystemTestRows;
 
 /// Test-function sums per block of A or B (as the single-equation path's).
@@ -133,6 +143,10 @@ pub struct SystemConfig {
     pub electrical: [Option<Electrical>; MAX_ELECTRICAL],
     /// The highest total degree of a coupling term (1: V; 2: also x·V, v·V, V²).
     pub coupling_order: u8,
+    /// Displacements: 1 (x, one second-order equation) or 2 (x1 and x2 of a
+    /// two-degree-of-freedom harvester, an equation each; a sample then carries
+    /// [`SystemSample::x2`], and [`SystemSample::v2`] when velocities are measured).
+    pub displacements: u8,
 }
 
 impl SystemConfig {
@@ -142,17 +156,24 @@ impl SystemConfig {
             mechanical: self.base.library,
             electrical: self.electrical,
             coupling_order: self.coupling_order,
+            displacements: self.displacements,
         }
     }
 
-    /// Equations: the mechanical one and one per electrical channel.
+    /// Equations: one per displacement and one per electrical channel.
     pub fn equations(&self) -> usize {
-        1 + self.library().electrical_count()
+        usize::from(self.displacements) + self.library().electrical_count()
     }
 
-    /// Ring buffers the samples need: x, v and u when measured, the electrical channels.
+    /// Ring buffers the samples need: x, v and u when measured, the electrical channels,
+    /// x2 and v2 when there are two displacements.
     pub fn rings(&self) -> usize {
-        self.base.channels.count() + self.library().electrical_count()
+        let second = if self.displacements > 1 {
+            1 + usize::from(self.base.channels.velocity)
+        } else {
+            0
+        };
+        self.base.channels.count() + self.library().electrical_count() + second
     }
 
     /// Checks every field against the capacities `W` (window), `P` (terms), `E` (equations)
@@ -200,7 +221,7 @@ pub enum SystemConfigError {
     Library(StateLibraryError),
     /// More equations than the identifier's capacity `E`.
     Equations {
-        /// Equations the configuration has (1 + electrical channels).
+        /// Equations the configuration has (displacements + electrical channels).
         equations: usize,
         /// Equations the identifier was built for.
         capacity: usize,
@@ -241,8 +262,12 @@ impl From<StateLibraryError> for SystemConfigError {
 pub struct SystemSample<'a, T> {
     /// Time, seconds.
     pub t: f64,
-    /// Displacement.
+    /// Displacement (x1 of two).
     pub x: T,
+    /// The second displacement, when the configuration has two (`displacements` 2).
+    pub x2: Option<T>,
+    /// The second displacement's measured velocity, when it has two and measures velocities.
+    pub v2: Option<T>,
     /// Measured velocity, when the configuration says there is one.
     pub v: Option<T>,
     /// Measured excitation, when the configuration says there is one.
@@ -252,7 +277,8 @@ pub struct SystemSample<'a, T> {
 }
 
 /// A regression row before the library: the states at the row's time, the input, the
-/// targets (x̂'', then each electrical channel's derivative) and the time.
+/// targets (x̂'', x̂2'' when there are two displacements, then each electrical channel's
+/// derivative) and the time.
 #[derive(Clone, Copy, Debug)]
 struct Row<T, const E: usize> {
     states: [T; STATES],
@@ -335,11 +361,15 @@ pub struct SystemIdentifier<
     library: StateLibrary<P>,
     taps: FoldedTaps<T, W>,
     rings: [HistoryBuf<T, W>; C],
-    /// Where v, u and the first electrical channel are (each meaningful when present).
+    /// Where v, u, the first electrical channel, x2 and v2 are (each meaningful when present).
     v_ring: usize,
     u_ring: usize,
     e_ring: usize,
+    x2_ring: usize,
+    v2_ring: usize,
     electrical: usize,
+    /// Displacements (1 or 2).
+    displacements: usize,
     max_abs_sure: T,
     too_early: f64,
     gap_after: f64,
@@ -385,6 +415,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
                 base: Config::zeroed(),
                 electrical: [None; MAX_ELECTRICAL],
                 coupling_order: 0,
+                displacements: 1,
             },
             library: StateLibrary::zeroed(),
             taps: FoldedTaps::empty(),
@@ -392,7 +423,10 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             v_ring: 0,
             u_ring: 0,
             e_ring: 0,
+            x2_ring: 0,
+            v2_ring: 0,
             electrical: 0,
+            displacements: 1,
             max_abs_sure: T::ZERO,
             too_early: 0.0,
             gap_after: 0.0,
@@ -423,6 +457,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             model: SystemModel {
                 terms: heapless::Vec::new(),
                 electrical: [None; MAX_ELECTRICAL],
+                displacements: 1,
                 equations: heapless::Vec::new(),
                 omega: 0.0,
                 samples: 0,
@@ -456,7 +491,8 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         self.taps.design(&design, |_| {});
         let n = library.len();
         let electrical = config.library().electrical_count();
-        let equations = 1 + electrical;
+        let displacements = usize::from(config.displacements);
+        let equations = displacements + electrical;
         let stride = usize::from(c.row_stride);
         let row_period = c.sample_period * f64::from(c.row_stride);
         let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
@@ -482,7 +518,10 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         self.v_ring = 1;
         self.u_ring = self.v_ring + usize::from(c.channels.velocity);
         self.e_ring = self.u_ring + usize::from(c.channels.input);
+        self.x2_ring = self.e_ring + electrical;
+        self.v2_ring = self.x2_ring + 1;
         self.electrical = electrical;
+        self.displacements = displacements;
         self.max_abs_sure = T::from_f64(c.max_abs * (1.0 - 1e-6));
         self.too_early = 0.5 * c.sample_period;
         self.gap_after = 1.5 * c.sample_period;
@@ -544,13 +583,16 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
     /// Why `s` cannot be fed in, if it cannot.
     fn check(&self, s: &SystemSample<'_, T>) -> Result<(), Rejection> {
         let channels = self.config.base.channels;
+        let two = self.displacements > 1;
         if s.v.is_some() != channels.velocity
             || s.u.is_some() != channels.input
             || s.electrical.len() != self.electrical
+            || s.x2.is_some() != two
+            || s.v2.is_some() != (two && channels.velocity)
         {
             return Err(Rejection::Channels);
         }
-        let mut values = [Some(s.x), s.v, s.u]
+        let mut values = [Some(s.x), s.v, s.u, s.x2, s.v2]
             .into_iter()
             .flatten()
             .chain(s.electrical.iter().copied());
@@ -615,6 +657,12 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         for (k, &e) in sample.electrical.iter().enumerate() {
             self.rings[self.e_ring + k].write(e);
         }
+        if let Some(x2) = sample.x2 {
+            self.rings[self.x2_ring].write(x2);
+        }
+        if let Some(v2) = sample.v2 {
+            self.rings[self.v2_ring].write(v2);
+        }
         let window = self.config.base.window;
         if self.rings[0].len() >= window && self.schedule.row_due(self.config.base.row_stride) {
             self.row(sample.t);
@@ -654,9 +702,28 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         states[1] = v;
         let mut y = [T::ZERO; E];
         y[0] = acceleration;
-        for k in 0..self.electrical.min(MAX_ELECTRICAL).min(E - 1) {
+        let d = self.displacements;
+        if d > 1 && E > 1 {
+            let (x2, v2, a2) = if channels.velocity {
+                (
+                    apply(self.x2_ring, 0),
+                    apply(self.v2_ring, 0),
+                    apply(self.v2_ring, 1),
+                )
+            } else {
+                (
+                    apply(self.x2_ring, 0),
+                    apply(self.x2_ring, 1),
+                    apply(self.x2_ring, 2),
+                )
+            };
+            states[4] = x2;
+            states[5] = v2;
+            y[1] = a2;
+        }
+        for k in 0..self.electrical.min(MAX_ELECTRICAL).min(E.saturating_sub(d)) {
             states[2 + k] = apply(self.e_ring + k, 0);
-            y[1 + k] = apply(self.e_ring + k, 1);
+            y[d + k] = apply(self.e_ring + k, 1);
         }
         Row { states, u, y, t }
     }
@@ -684,7 +751,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             let rows = core::mem::take(rows);
             self.set_scales(&rows);
             let n = self.library.len();
-            let equations = 1 + self.electrical;
+            let equations = self.displacements + self.electrical;
             self.store.become_halves(n, equations);
             for r in rows.iter() {
                 self.fold(r);
@@ -828,6 +895,7 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             scales,
             y_scales,
             electrical,
+            displacements,
             regression_rows,
             block_len,
             counters,
@@ -839,13 +907,15 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             return false;
         };
         let n = library.len();
-        let equations = (1 + *electrical).min(E);
+        let d = *displacements;
+        let equations = (d + *electrical).min(E);
         let to_a = (*regression_rows / *block_len).is_multiple_of(2);
         // The model is written in place (a second one on the stack would be 1 KB with f32,
         // P = 16, E = 2); A and B are one pair, as in the single-equation screening.
         *has_model = true;
         model.terms.clear();
         model.electrical = config.electrical;
+        model.displacements = config.displacements;
         model.equations.clear();
         model.omega = config.base.omega;
         model.samples = counters.accepted;
@@ -878,8 +948,10 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             let y_scale = y_scales[k];
             let target = if k == 0 {
                 Target::Acceleration
+            } else if k < d {
+                Target::Acceleration2
             } else {
-                Target::Rate(config.electrical[k - 1].unwrap_or(Electrical::Voltage))
+                Target::Rate(config.electrical[k - d].unwrap_or(Electrical::Voltage))
             };
             // The equation is filled in place (its coefficients and solutions built on the
             // stack and moved in were 0.9 KB of the screening's stack with f32, P = 16).
@@ -948,7 +1020,10 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             v_ring,
             u_ring,
             e_ring,
+            x2_ring,
+            v2_ring,
             electrical,
+            displacements,
             max_abs_sure,
             too_early,
             gap_after,
@@ -974,7 +1049,10 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         s.v_ring = *v_ring;
         s.u_ring = *u_ring;
         s.e_ring = *e_ring;
+        s.x2_ring = *x2_ring;
+        s.v2_ring = *v2_ring;
         s.electrical = *electrical;
+        s.displacements = *displacements;
         s.max_abs_sure = *max_abs_sure;
         s.too_early = *too_early;
         s.gap_after = *gap_after;
@@ -1005,7 +1083,8 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
 /// let mut slot: Box<SystemSlot<f32, 256, 16, 2, 2>> = Box::new(SystemSlot::new());
 /// assert!(slot.get().is_none());
 /// let config = SystemConfig { base: Config { window: 63, ..Config::default() },
-///                             electrical: [Some(Electrical::Voltage), None], coupling_order: 2 };
+///                             electrical: [Some(Electrical::Voltage), None], coupling_order: 2,
+///                             displacements: 1 };
 /// slot.configure(config).unwrap();
 /// assert_eq!(slot.get().unwrap().library().len(), 16);
 /// // A refused configuration leaves the slot as it was.

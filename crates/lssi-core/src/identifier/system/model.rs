@@ -10,8 +10,10 @@ use core::fmt;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Target {
-    /// x'' (the mechanical equation, second order).
+    /// x'' (the mechanical equation, second order; x1'' of two displacements).
     Acceleration,
+    /// x2'' (the second displacement's equation, in a two-degree-of-freedom system).
+    Acceleration2,
     /// V' or i' (an electrical channel's equation, first order).
     Rate(Electrical),
 }
@@ -20,6 +22,7 @@ impl fmt::Display for Target {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Target::Acceleration => f.write_str("x''"),
+            Target::Acceleration2 => f.write_str("x2''"),
             Target::Rate(e) => write!(f, "{}'", e.symbol()),
         }
     }
@@ -61,7 +64,10 @@ pub struct SystemModel<T, const P: usize, const E: usize> {
     pub terms: heapless::Vec<StateTerm, P>,
     /// The electrical channels (naming their states and equations).
     pub electrical: [Option<Electrical>; MAX_ELECTRICAL],
-    /// x'' first, then V' (or i') for each electrical channel.
+    /// Displacements (1, or 2: the states are then named x1, v1, x2, v2).
+    pub displacements: u8,
+    /// x'' first (x1'' then x2'' with two displacements), then V' (or i') for each
+    /// electrical channel.
     pub equations: heapless::Vec<Equation<T, P>, E>,
     /// Base angular frequency Ω of the harmonics, rad/s.
     pub omega: f64,
@@ -89,7 +95,20 @@ impl<T: Real, const P: usize, const E: usize> SystemModel<T, P, E> {
     /// Column `j`'s name (`x*V`), as the command line and JSON write it.
     pub fn term_name(&self, j: usize) -> Option<StateTermName> {
         let term = self.terms.get(j)?;
-        Some(term.name(self.omega, &self.electrical))
+        Some(
+            term.name(self.omega, &self.electrical)
+                .in_system(self.displacements),
+        )
+    }
+
+    /// The name of equation `k`'s left-hand side: `x''`, `V'`, and with two displacements
+    /// `x1''` and `x2''`.
+    pub fn target_name(&self, k: usize) -> Option<TargetName> {
+        let target = self.equations.get(k)?.target;
+        Some(TargetName {
+            target,
+            displacements: self.displacements,
+        })
     }
 
     /// The active terms of the equation of `target`, with their coefficients, in column
@@ -113,7 +132,14 @@ impl<T: Real, const P: usize, const E: usize> SystemModel<T, P, E> {
         let Some(e) = self.equations.get(k) else {
             return Ok(());
         };
-        write!(out, "{} =", e.target)?;
+        write!(
+            out,
+            "{} =",
+            TargetName {
+                target: e.target,
+                displacements: self.displacements
+            }
+        )?;
         let mut any = false;
         for (j, term) in self.terms.iter().enumerate() {
             if e.support() & (1 << j) == 0 {
@@ -125,12 +151,30 @@ impl<T: Real, const P: usize, const E: usize> SystemModel<T, P, E> {
                 write!(out, " {sign}")?;
             }
             write!(out, " {:.*} ", decimals, c.abs())?;
-            term.write_name(out, self.omega, &self.electrical)?;
+            term.write_name_in(out, self.omega, &self.electrical, self.displacements)?;
             any = true;
         }
         if !any {
             out.write_str(" 0")?;
         }
         Ok(())
+    }
+}
+
+/// A target as a system of some displacements names it (`x1''` where there are two).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TargetName {
+    /// The target.
+    pub target: Target,
+    /// Displacements of its system.
+    pub displacements: u8,
+}
+
+impl fmt::Display for TargetName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.target {
+            Target::Acceleration if self.displacements > 1 => f.write_str("x1''"),
+            t => fmt::Display::fmt(&t, f),
+        }
     }
 }
