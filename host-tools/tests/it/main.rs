@@ -31,6 +31,7 @@ mod standard_errors;
 mod stdin_input;
 mod stream;
 mod stream_gate;
+mod stuck;
 mod sweep;
 mod system;
 mod system_gate;

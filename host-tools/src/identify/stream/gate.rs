@@ -9,6 +9,9 @@
 //!   the short-horizon simulation follows the block, the terms are not collinear on it, it is
 //!   not a sweep. A block that fails withholds the model, its time span named: the file's
 //!   model must explain every part of it that the gate sees, not only the first rows.
+//! - A sensor stuck at one value ([`crate::identify::blemish`]) past the excerpt: the stream
+//!   fed those rows to the identifier (only the excerpt's stuck rows are left out), so the
+//!   model is withheld, the stuck rows named.
 
 use lssi_core::Config;
 
@@ -80,6 +83,24 @@ pub(super) fn judge(
         if let Some(variance) = quality::target_variance(rows, config) {
             pooled += variance * rows.len() as f64;
             weight += rows.len() as f64;
+        }
+        if block.first_row > 0 {
+            let scan = crate::identify::blemish::Scan::of(rows);
+            for b in scan
+                .blemishes
+                .iter()
+                .filter(|b| b.kind == crate::identify::blemish::Kind::Stuck)
+            {
+                quality.failures.push(format!(
+                    "{} is stuck at {} over data rows {}–{} (t = {}–{} s; a sensor that froze, or a logger repeating its last reading), which the streamed model was fitted with: cut them out",
+                    b.channel,
+                    b.value,
+                    block.first_row + b.index + 1,
+                    block.first_row + b.index + b.rows,
+                    b.t,
+                    b.t_end
+                ));
+            }
         }
         let q = quality::assess(rows, config, &local, None);
         if let Some(stable) = q.stable {
