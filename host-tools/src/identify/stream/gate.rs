@@ -9,6 +9,10 @@
 //!   the short-horizon simulation follows the block, the terms are not collinear on it, it is
 //!   not a sweep. A block that fails withholds the model, its time span named: the file's
 //!   model must explain every part of it that the gate sees, not only the first rows.
+//! - The file's last rows on their own: the second half of the last block (which always ends
+//!   at the file's last row), judged as a block. A break in only the file's last few per cent
+//!   fills part of the last block, and the block's median window passed it; its last half
+//!   is mostly broken.
 //! - A sensor stuck at one value ([`crate::identify::blemish`]) past the excerpt: the stream
 //!   fed those rows to the identifier (only the excerpt's stuck rows are left out), so the
 //!   model is withheld, the stuck rows named.
@@ -44,6 +48,28 @@ fn span(block: &Block) -> String {
     )
 }
 
+/// The second half of a block (its last rows), as a block; `None` when it is too short to
+/// judge.
+fn last_half(block: &Block) -> Option<Block> {
+    let rows = &block.rows;
+    let n = rows.t.len();
+    if n < 512 {
+        return None;
+    }
+    let from = n / 2;
+    Some(Block {
+        first_row: block.first_row + from,
+        rows: crate::recording::Recording {
+            path: rows.path.clone(),
+            t: rows.t[from..].to_vec(),
+            x: rows.x[from..].to_vec(),
+            v: rows.v.as_ref().map(|v| v[from..].to_vec()),
+            u: rows.u.as_ref().map(|u| u[from..].to_vec()),
+            columns: rows.columns.clone(),
+        },
+    })
+}
+
 /// The gate over the whole file: see the module docs. `report` and `other` are the file's
 /// models (in the precision asked for and the other one) before the reference is put back,
 /// `reference` what was subtracted from every sample.
@@ -75,6 +101,7 @@ pub(super) fn judge(
     };
     let mut failing = Vec::new();
     let (mut pooled, mut weight) = (0.0, 0.0);
+    let last_rows = blocks.last().and_then(last_half);
     for block in blocks {
         let shifted = reference.shifted(&block.rows);
         let rows = shifted.as_ref().unwrap_or(&block.rows);
@@ -108,6 +135,27 @@ pub(super) fn judge(
         }
         if !q.failures.is_empty() {
             failing.push(format!("at {}: {}", span(block), q.failures.join("; ")));
+        }
+    }
+    // The file's last rows on their own (named unless the whole last block failed already).
+    if let Some(block) = &last_rows {
+        let shifted = reference.shifted(&block.rows);
+        let rows = shifted.as_ref().unwrap_or(&block.rows);
+        let q = quality::assess(rows, config, &local, None);
+        if let Some(stable) = q.stable {
+            quality.stable = Some(quality.stable.unwrap_or(true) && stable);
+        }
+        let last_failed = blocks.last().is_some_and(|b| {
+            failing
+                .last()
+                .is_some_and(|f| f.starts_with(&format!("at {}:", span(b))))
+        });
+        if !q.failures.is_empty() && !last_failed {
+            failing.push(format!(
+                "at the file's last rows, {}: {}",
+                span(block),
+                q.failures.join("; ")
+            ));
         }
     }
     // The whole file: held-out error (over every row) against the target's variance on the
