@@ -21,9 +21,10 @@
 //! one resolution width instead of spreading it over the swept band. The record is a sweep
 //! when the strongest such line at a chirp rate k ≠ 0 (one that moves at least
 //! [`CHIRP_MIN_RESOLUTIONS`] resolution widths over the record, and a local maximum in k) is
-//! [`CHIRP_GAIN`] times stronger than the strongest line of the record as it is (k = 0), and
-//! its envelope does not die out across the record (a ringdown of a hardening or softening
-//! oscillator is a chirp too, but one that decays from its first state).
+//! [`CHIRP_GAIN`] times stronger than the strongest line of the record as it is (k = 0), stands
+//! [`CHIRP_PROMINENCE`] times above the median of its spectrum, and its envelope does not die
+//! out across the record (a ringdown of a hardening or softening oscillator is a chirp too,
+//! but one that decays from its first state).
 
 use crate::identify::blemish::Scan;
 use crate::recording::Recording;
@@ -49,6 +50,9 @@ pub const MIN_RESOLUTIONS: f64 = 1.0;
 
 /// How much stronger the dechirped line must be than the record's strongest line.
 pub const CHIRP_GAIN: f64 = 1.2;
+/// How far the dechirped line must stand above the median of its spectrum (noise's strongest
+/// line over all the rates tried stands about 20 times above it; a swept response's, 10⁵).
+pub const CHIRP_PROMINENCE: f64 = 100.0;
 /// Resolution widths (2π over the record's duration) the dechirped line must move at least.
 pub const CHIRP_MIN_RESOLUTIONS: f64 = 2.0;
 /// Samples the record is reduced to (by block means) for the dechirping, at most about.
@@ -264,6 +268,19 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
         );
     }
     if !(still > 0.0 && power >= CHIRP_GAIN * still) {
+        return None;
+    }
+    // The line must stand clear of its spectrum (noise has a strongest line at every rate).
+    let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); size];
+    for i in 0..count {
+        let tc = centre(i);
+        buf[i] = Complex::from_polar(y[i] * window[i], -0.5 * k * tc * tc);
+    }
+    fft.process(&mut buf);
+    let mut spectrum: Vec<f64> = buf[lowest..size / 2].iter().map(|c| c.norm_sqr()).collect();
+    let middle = spectrum.len() / 2;
+    let median = *spectrum.select_nth_unstable_by(middle, f64::total_cmp).1;
+    if !(power >= CHIRP_PROMINENCE * median) {
         return None;
     }
     // The line's envelope: x demodulated along it, averaged over two of its periods.
