@@ -106,7 +106,7 @@ for seed in seeds:
                            '--delta', str(delta), '--rate', str(rate)] + s, 'sw')
         judge('sweep, no u', v, path, truth, expect='sweeps in frequency')
     # 2b. short (5 s) records: ringdowns (the damping found, or withheld for want of it) and
-    # a sweep without u (still withheld for the short-horizon check, not named: issue 25)
+    # a sweep without u (named: found by dechirping the record whole, issue 25)
     for rate, delta in [(1000, 0.02), (5000, 0.02), (1000, 0.05), (5000, 0.05)]:
         v = f'ringdown 5 s {rate} Hz noise {delta} seed {seed}'
         path, truth = gen(['--wells', 'monostable', '--amplitude', '0', '--x0', '0.004', '--t-end', '5',

@@ -2,7 +2,7 @@
 # The quality gate over whole streamed files (issue 25, 3): recordings over 8 MiB (read in
 # chunks), clean ones of many variants and ones whose dynamics break after the first 65,536
 # rows (flat: the sensor died; noise: a loose wire; other: the monostable harvester's x from
-# there on). Prints one line per file: its exit status (0 model, 3 withheld) and the first
+# there on), or only in their last 5 % (tail*). Prints one line per file: its exit status (0 model, 3 withheld) and the first
 # line of the model or of the refusal, for $LSSI and, when set, $LSSI_BEFORE.
 #   LSSI=target/release/lssi [LSSI_BEFORE=/path/to/old/lssi] scripts/stream-gate.sh [DIR]
 # Also the peak memory and time of a 10 MB and a 100 MB file by path and by pipe (STREAM_BENCH=1).
@@ -16,11 +16,11 @@ gen() { # name, gen args...
   local name=$1; shift
   [ -f "$name.csv" ] || "$LSSI" gen eveh "$@" "$name.csv" >/dev/null
 }
-# Row 100,000 on: x replaced (t kept).
+# Row 100,000 on (or $KEEP on): x replaced (t kept).
 splice() { # kind, source, out, [other]
-  awk -F, -v kind="$1" -v keep=100001 -v other="${4:-}" 'BEGIN { srand(7) }
+  awk -F, -v kind="$1" -v keep="${KEEP:-100000}" -v other="${4:-}" 'BEGIN { srand(7) }
     NR == 1 { print; next }
-    NR <= keep { print; xs += $2 * $2; n++; last = $2; next }
+    NR <= keep + 1 { print; xs += $2 * $2; n++; last = $2; next }
     {
       if (kind == "flat") print $1 "," last;
       else if (kind == "noise") {
@@ -56,6 +56,14 @@ for base in b50k-s1 b50k-s2; do
     tail -n +100001 other.rows > other.tail
     splice other "$base.csv" "$base-other.csv" other.tail
   fi
+  # Broken in the last 5 % only (from row 475,000 of 500,001): between the gate's kept
+  # blocks, within the file's last block.
+  [ -f "$base-tailflat.csv" ] || KEEP=475000 splice flat "$base.csv" "$base-tailflat.csv"
+  [ -f "$base-tailnoise.csv" ] || KEEP=475000 splice noise "$base.csv" "$base-tailnoise.csv"
+  if [ ! -f "$base-tailother.csv" ]; then
+    tail -n +2 m50k-other.csv | tail -n +475001 > other.tail
+    KEEP=475000 splice other "$base.csv" "$base-tailother.csv" other.tail
+  fi
 done
 run() { # binary, file: the exit status, then the model's first line or the refusal
   local rc=0
@@ -63,7 +71,9 @@ run() { # binary, file: the exit status, then the model's first line or the refu
   printf 'exit %s\t%s\n' "$rc" "$( (head -1 out.txt; grep -v "warning" err.txt) | head -c 400)"
 }
 for f in b50k-s1 b50k-s2 b50k-s3 m50k-s1 m50k-s2 b20k-s4 b2k-s5 b50k-xv b50k-noisy b50k-u m10k-s9 \
-  b50k-s1-flat b50k-s1-noise b50k-s1-other b50k-s2-flat b50k-s2-noise b50k-s2-other; do
+  b50k-s1-flat b50k-s1-noise b50k-s1-other b50k-s2-flat b50k-s2-noise b50k-s2-other \
+  b50k-s1-tailflat b50k-s1-tailnoise b50k-s1-tailother b50k-s2-tailflat b50k-s2-tailnoise \
+  b50k-s2-tailother; do
   size=$(stat -c %s "$f.csv")
   printf '%s (%s bytes)\n  after:  %s\n' "$f" "$size" "$(run "$LSSI" "$f.csv")"
   if [ -n "${LSSI_BEFORE:-}" ]; then

@@ -444,7 +444,7 @@ fn bistablex(dir: &Path, key: &'static str, file: &str, fit_fraction: f64) -> Re
         fit: (0, split),
         validate: vec![("held-out part", (split, n))],
         options: Options {
-            harmonics: 0,
+            harmonics: Some(0),
             poly_order: 3,
             family: PolyFamily::OddFamilies,
             ..Options::default()
@@ -474,7 +474,7 @@ fn frid(dir: &Path) -> Result<Case, String> {
         v: None,
         u: None,
         options: Options {
-            harmonics: 0,
+            harmonics: Some(0),
             poly_order: 3,
             family: PolyFamily::All,
             ..Options::default()
@@ -513,7 +513,7 @@ fn silverbox(dir: &Path, window: Option<(usize, u8)>) -> Result<Case, String> {
             ("arrow, no extrapolation [100, 32100)", (100, 32100)),
         ],
         options: Options {
-            harmonics: 0,
+            harmonics: Some(0),
             poly_order: 3,
             family: PolyFamily::OddFamilies,
             ..Options::default()

@@ -58,7 +58,7 @@ fn truth(epsilon: f64) -> [(&'static str, f64); 6] {
 fn options(f32: bool, smoothing: bool) -> Options {
     Options {
         omega: Some(1.0),
-        harmonics: 3,
+        harmonics: Some(3),
         poly_order: 3,
         f32,
         smoothing,

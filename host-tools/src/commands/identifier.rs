@@ -36,9 +36,10 @@ pub struct IdentifierArgs {
     /// Base excitation frequency Ω in rad/s (default: estimated from the data).
     #[arg(long, value_name = "RAD_PER_S")]
     pub omega: Option<f64>,
-    /// sin/cos(kΩt) terms for k = 1..H (0: none, for a measured excitation u).
-    #[arg(long, default_value_t = 1, value_name = "H")]
-    pub harmonics: u8,
+    /// sin/cos(kΩt) terms for k = 1..H (default: 1, or 0 when the recording has a measured
+    /// excitation u, which is the forcing).
+    #[arg(long, value_name = "H")]
+    pub harmonics: Option<u8>,
     /// Highest order of the monomials of (x, v).
     #[arg(long, default_value_t = 3, value_name = "P")]
     pub poly_order: u8,
@@ -82,10 +83,12 @@ impl IdentifierArgs {
                 requirement: "between 1 and 9".into(),
             });
         }
-        if self.harmonics > 8 {
+        if let Some(h) = self.harmonics
+            && h > 8
+        {
             return Err(CliError::BadFlag {
                 flag: "--harmonics",
-                value: self.harmonics.to_string(),
+                value: h.to_string(),
                 requirement: "at most 8".into(),
             });
         }

@@ -30,6 +30,14 @@
 //!   fitted to the samples 2 to 25 away, against that stencil's own limit, so a spike there is
 //!   found where it is (issue 25), not at its neighbour; such a spike is left out.
 //!
+//! - a stuck sensor: a run of samples in which x (or a measured v) keeps exactly the same
+//!   value for at least [`STUCK_PERIODS`] of its dominant period (and [`STUCK_MIN_ROWS`]
+//!   samples) while it varies elsewhere. No oscillator's coordinate stays bit for bit
+//!   constant over half a period; a frozen sensor or a logger that repeats its last reading
+//!   does. The run's samples after its first are left out (and named, rows and times, as one
+//!   blemish), so the model comes from the rest of the record; quantised data, whose turning
+//!   points repeat a value for a few per cent of a period, is not taken for it.
+//!
 //! The excitation frequency is estimated from windows within clean stretches only, and the
 //! derivative window from the clean samples (see [`crate::identify::configure`]).
 
@@ -42,6 +50,12 @@ pub const SPIKE_MADS: f64 = 12.0;
 /// How much a spike's r must exceed its neighbours' (an isolated spike: 1.5).
 pub const SPIKE_DOMINANCE: f64 = 1.25;
 
+/// Fraction of x's dominant period (samples per period of its strongest line) a run of equal
+/// values must last to be a stuck sensor.
+pub const STUCK_PERIODS: f64 = 0.5;
+/// Samples a run of equal values must hold at least to be a stuck sensor.
+pub const STUCK_MIN_ROWS: usize = 32;
+
 /// What is wrong with a sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -53,6 +67,9 @@ pub enum Kind {
     Early,
     /// An isolated spike (left out).
     Spike,
+    /// The first sample of a run in which a channel is stuck at one value (the rest of the
+    /// run left out; [`Blemish::rows`] long).
+    Stuck,
 }
 
 impl Kind {
@@ -63,6 +80,7 @@ impl Kind {
             Kind::Gap => "time gaps",
             Kind::Early => "samples less than half a period after the previous one",
             Kind::Spike => "isolated spikes",
+            Kind::Stuck => "stretches where the sensor is stuck at one value",
         }
     }
 
@@ -73,6 +91,7 @@ impl Kind {
             Kind::Gap => "time gap",
             Kind::Early => "sample less than half a period after the previous one",
             Kind::Spike => "isolated spike",
+            Kind::Stuck => "stretch where the sensor is stuck at one value",
         }
     }
 }
@@ -91,6 +110,12 @@ pub struct Blemish {
     /// A spike given to the identifier as the cubic through its neighbours (see
     /// [`Scan::repairs`]) rather than left out.
     pub repaired: bool,
+    /// Samples it covers: 1, or a stuck run's length.
+    pub rows: usize,
+    /// The time of its last sample (its own time but for a stuck run).
+    pub t_end: f64,
+    /// The channel ("x", "v") of a stuck run; "" otherwise.
+    pub channel: &'static str,
 }
 
 impl Blemish {
@@ -117,6 +142,15 @@ impl Blemish {
             Kind::Spike => format!(
                 "data row {row} (t = {}): an isolated spike ({:e}); it was left out and the window restarted",
                 self.t, self.value
+            ),
+            Kind::Stuck => format!(
+                "data rows {row}–{} (t = {}–{} s): {} is stuck at {} (the same value in {} samples in a row: a sensor that froze, or a logger repeating its last reading); they were left out after the first and the window restarted",
+                row + self.rows - 1,
+                self.t,
+                self.t_end,
+                self.channel,
+                self.value,
+                self.rows
             ),
         }
     }
@@ -215,6 +249,28 @@ impl Scan {
                     t: t[i],
                     value,
                     repaired: false,
+                    rows: 1,
+                    t_end: t[i],
+                    channel: "",
+                });
+            }
+        }
+        let mut names: Vec<&'static str> = vec!["x"];
+        names.extend(recording.v.as_ref().map(|_| "v"));
+        for (c, name) in names.into_iter().enumerate() {
+            for run in stuck(channels[c], &scan) {
+                for j in run.start + 1..run.end {
+                    scan.skip[j] = true;
+                }
+                found.push(Blemish {
+                    kind: Kind::Stuck,
+                    index: run.start,
+                    t: t[run.start],
+                    value: channels[c][run.start],
+                    repaired: false,
+                    rows: run.len(),
+                    t_end: t[run.end - 1],
+                    channel: name,
                 });
             }
         }
@@ -236,6 +292,9 @@ impl Scan {
                                 t: t[i],
                                 value: step,
                                 repaired: false,
+                                rows: 1,
+                                t_end: t[i],
+                                channel: "",
                             });
                         }
                         continue;
@@ -249,6 +308,9 @@ impl Scan {
                             t: t[i],
                             value: step,
                             repaired: false,
+                            rows: 1,
+                            t_end: t[i],
+                            channel: "",
                         });
                     }
                 }
@@ -266,6 +328,9 @@ impl Scan {
                             t: t[i],
                             value: channel[i],
                             repaired: false,
+                            rows: 1,
+                            t_end: t[i],
+                            channel: "",
                         });
                     }
                 }
@@ -409,7 +474,13 @@ impl Scan {
 
     /// One sentence per kind of blemish: how many, and the first rows.
     pub fn summary(&self) -> Vec<String> {
-        let kinds = [Kind::NonFinite, Kind::Gap, Kind::Early, Kind::Spike];
+        let kinds = [
+            Kind::NonFinite,
+            Kind::Gap,
+            Kind::Early,
+            Kind::Spike,
+            Kind::Stuck,
+        ];
         kinds
             .iter()
             .filter_map(|&k| {
@@ -421,6 +492,25 @@ impl Scan {
                     .collect();
                 if rows.is_empty() {
                     return None;
+                }
+                if k == Kind::Stuck {
+                    let runs: Vec<String> = self
+                        .blemishes
+                        .iter()
+                        .filter(|b| b.kind == k)
+                        .map(|b| {
+                            format!(
+                                "{} stuck at {} over data rows {}–{} (t = {}–{} s)",
+                                b.channel,
+                                b.value,
+                                b.index + 1,
+                                b.index + b.rows,
+                                b.t,
+                                b.t_end
+                            )
+                        })
+                        .collect();
+                    return Some(runs.join(", "));
                 }
                 Some(format!(
                     "{} {} ({})",
@@ -477,6 +567,50 @@ const EDGE_FIT: usize = 24;
 
 /// At most this many positions measure the one-sided stencil's limit (evenly spread).
 const EDGE_SAMPLE: usize = 100_000;
+
+/// The runs of a channel stuck at one value (see the module docs): runs of exactly equal
+/// finite samples, not left out already, at least [`STUCK_MIN_ROWS`] long and
+/// [`STUCK_PERIODS`] of the channel's dominant period, while the channel varies elsewhere
+/// (a constant channel is the quality gate's to name).
+fn stuck(s: &[f64], scan: &Scan) -> Vec<Range<usize>> {
+    let n = s.len();
+    let mut runs: Vec<Range<usize>> = Vec::new();
+    let mut start = 0;
+    for i in 1..=n {
+        let same = i < n && !scan.skip[i] && s[i].is_finite() && s[i] == s[i - 1];
+        if !same {
+            if i - start >= STUCK_MIN_ROWS && !scan.skip[start] && s[start].is_finite() {
+                runs.push(start..i);
+            }
+            start = i;
+        }
+    }
+    if runs.is_empty() {
+        return runs;
+    }
+    // A channel constant but for a few samples is not a stuck stretch of a varying one.
+    let held: usize = runs.iter().map(|r| r.len()).sum();
+    if n - held < STUCK_MIN_ROWS {
+        return Vec::new();
+    }
+    // The dominant period from the samples outside the runs (each run's first kept).
+    let mut rest: Vec<f64> = Vec::with_capacity(n);
+    let mut k = 0;
+    for (i, v) in s.iter().enumerate() {
+        while k < runs.len() && runs[k].end <= i {
+            k += 1;
+        }
+        if (k < runs.len() && runs[k].start < i && i < runs[k].end) || !v.is_finite() {
+            continue;
+        }
+        rest.push(*v);
+    }
+    let Some(period) = crate::identify::refine::mean_period_samples(&rest) else {
+        return Vec::new();
+    };
+    runs.retain(|r| r.len() as f64 >= STUCK_PERIODS * period);
+    runs
+}
 
 /// The centre of a residual and the limit of |r − centre| beyond which a sample is a spike.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -41,8 +41,8 @@ pub const TERM_CAPACITY: usize = 32;
 pub struct Options {
     /// Base excitation frequency, rad/s (`None`: estimated).
     pub omega: Option<f64>,
-    /// sin/cos harmonics of Ω.
-    pub harmonics: u8,
+    /// sin/cos harmonics of Ω (`None`: the default, [`Options::harmonics_for`]).
+    pub harmonics: Option<u8>,
     /// Highest polynomial order.
     pub poly_order: u8,
     /// Which monomials.
@@ -61,7 +61,7 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             omega: None,
-            harmonics: 1,
+            harmonics: None,
             poly_order: 3,
             family: PolyFamily::All,
             f32: true,
@@ -69,6 +69,16 @@ impl Default for Options {
             memory: None,
             noise_correction: false,
         }
+    }
+}
+
+impl Options {
+    /// The harmonics of Ω in the library: those asked for, or by default one (a forcing
+    /// cos(Ωt) to find) without a measured excitation u and none with one (u is the forcing;
+    /// cos(Ωt) beside it is the same signal twice, and the selection would split the forcing
+    /// between them).
+    pub fn harmonics_for(&self, input: bool) -> u8 {
+        self.harmonics.unwrap_or(u8::from(!input))
     }
 }
 
@@ -234,7 +244,7 @@ pub fn configure(
         poly_order: options.poly_order,
         family: options.family,
         constant: true,
-        harmonics: options.harmonics,
+        harmonics: options.harmonics_for(channels.input),
         input: channels.input,
     };
     let mut config = Config {
@@ -250,7 +260,7 @@ pub fn configure(
         ..Config::default()
     };
     let mut estimated = false;
-    if options.harmonics > 0 {
+    if config.library.harmonics > 0 {
         config.omega = match options.omega {
             // Above the Nyquist frequency sin(Ωt) and cos(Ωt) alias onto a lower frequency:
             // the model's forcing would not be the one asked for.

@@ -13,6 +13,18 @@
 //! A steady response keeps one line (its drift is the estimate's noise); a chaotic one's line
 //! jumps about (its lines do not lie on one straight drift), and a transient that settles
 //! leaves the lines of most segments at one frequency.
+//!
+//! A short record (a few seconds) has segments too short to resolve the drift (12 segments of
+//! 0.42 s resolve 15 rad/s), so when the segments find no sweep the whole record is
+//! *dechirped* ([`chirp`]): multiplied by exp(−i k t²/2) for chirp rates k on a grid, the
+//! linear sweep at rate k becomes one line, which the Hann-windowed spectrum then holds in
+//! one resolution width instead of spreading it over the swept band. The record is a sweep
+//! when the strongest such line at a chirp rate k ≠ 0 (one that moves at least
+//! [`CHIRP_MIN_RESOLUTIONS`] resolution widths over the record, and a local maximum in k) is
+//! [`CHIRP_GAIN`] times stronger than the strongest line of the record as it is (k = 0), stands
+//! [`CHIRP_PROMINENCE`] times above the median of its spectrum, and its envelope does not die
+//! out across the record (a ringdown of a hardening or softening oscillator is a chirp too,
+//! but one that decays from its first state).
 
 use crate::identify::blemish::Scan;
 use crate::recording::Recording;
@@ -36,6 +48,18 @@ pub const MIN_DRIFT: f64 = 0.08;
 /// The drift in resolution widths (2π over a segment's duration).
 pub const MIN_RESOLUTIONS: f64 = 1.0;
 
+/// How much stronger the dechirped line must be than the record's strongest line.
+pub const CHIRP_GAIN: f64 = 1.2;
+/// How far the dechirped line must stand above the median of its spectrum (noise's strongest
+/// line over all the rates tried stands about 20 times above it; a swept response's, 10⁵).
+pub const CHIRP_PROMINENCE: f64 = 100.0;
+/// Resolution widths (2π over the record's duration) the dechirped line must move at least.
+pub const CHIRP_MIN_RESOLUTIONS: f64 = 2.0;
+/// Samples the record is reduced to (by block means) for the dechirping, at most about.
+const CHIRP_SAMPLES: usize = 8192;
+/// Chirp rates tried either side of 0, at most.
+const CHIRP_RATES: usize = 80;
+
 /// A sweep found: the straight drift of the segments' lines.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sweep {
@@ -53,6 +77,12 @@ impl Sweep {
     /// The gate's sentence.
     pub fn sentence(&self) -> String {
         let (first, last) = (self.from, self.to);
+        if self.segments == 0 {
+            return format!(
+                "the forcing sweeps in frequency (a chirp): x holds a line that moves steadily from {first:.3} rad/s to {last:.3} rad/s over the record ({:.3} s; found by dechirping it whole), which no forcing cos(Ωt) at one Ω describes; give the excitation as a u column (--u-col) or identify a stretch at one frequency",
+                self.seconds
+            );
+        }
         format!(
             "the forcing sweeps in frequency (a chirp): x's dominant frequency moves steadily from {first:.3} rad/s to {last:.3} rad/s over the record ({} segments of {:.3} s), which no forcing cos(Ωt) at one Ω describes; give the excitation as a u column (--u-col) or identify a stretch at one frequency",
             self.segments, self.seconds
@@ -129,6 +159,163 @@ pub fn sweep(recording: &Recording) -> Option<Sweep> {
     [SEGMENTS, (SEGMENTS + MIN_SEGMENTS) / 2, MIN_SEGMENTS]
         .into_iter()
         .find_map(|segments| drift(t, x, segments))
+        .or_else(|| chirp(t, x))
+}
+
+/// The record dechirped whole (see the module docs): the sweep, with `segments` 0, when it
+/// is one.
+pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    use std::f64::consts::PI;
+    let n = x.len();
+    if n < 256 || t.len() != n || x.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
+    if !(dt > 0.0) {
+        return None;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let hann = |i: usize, n: usize| 0.5 - 0.5 * (2.0 * PI * i as f64 / (n - 1) as f64).cos();
+    let mut planner = FftPlanner::new();
+    // The record's strongest line (three resolution widths up at least), for the reduction.
+    let resolution = 2.0 * PI / (t[n - 1] - t[0]);
+    let size = (n.next_power_of_two() * 2).min(1 << 22);
+    let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); size];
+    for (i, v) in x.iter().enumerate().take(size) {
+        buf[i] = Complex::new((v - mean) * hann(i, n), 0.0);
+    }
+    planner.plan_fft_forward(size).process(&mut buf);
+    let bin = 2.0 * PI / (size as f64 * dt);
+    let lowest = (3.0 * resolution / bin).ceil() as usize;
+    if lowest + 2 >= size / 2 {
+        return None;
+    }
+    let (k0, _) = buf[lowest..size / 2]
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.norm_sqr().total_cmp(&b.1.norm_sqr()))?;
+    let line = (k0 + lowest) as f64 * bin;
+    // Block means of m samples, keeping the Nyquist frequency four times the line.
+    let m = (n / CHIRP_SAMPLES)
+        .min((PI / (4.0 * line * dt)).floor() as usize)
+        .max(1);
+    let count = n / m;
+    let y: Vec<f64> = (0..count)
+        .map(|b| x[b * m..(b + 1) * m].iter().map(|v| v - mean).sum::<f64>() / m as f64)
+        .collect();
+    let step = dt * m as f64;
+    let duration = (count - 1) as f64 * step;
+    let centre = |i: usize| i as f64 * step - 0.5 * duration;
+    let size = count.next_power_of_two() * 2;
+    let bin = 2.0 * PI / (size as f64 * step);
+    let lowest = (3.0 * 2.0 * PI / duration / bin).ceil() as usize;
+    if lowest + 2 >= size / 2 {
+        return None;
+    }
+    // Chirp rates k (rad/s²): steps of 2π/T² (a quarter-turn of phase mismatch at the ends),
+    // up to a drift of twice the line over the record.
+    let k_max = 2.0 * line / duration;
+    let mut k_step = 2.0 * PI / (duration * duration);
+    let mut steps = (k_max / k_step).floor() as usize;
+    if steps > CHIRP_RATES {
+        k_step = k_max / CHIRP_RATES as f64;
+        steps = CHIRP_RATES;
+    }
+    if steps < 2 {
+        return None;
+    }
+    let fft = planner.plan_fft_forward(size);
+    let window: Vec<f64> = (0..count).map(|i| hann(i, count)).collect();
+    // Each rate's strongest line: (power, frequency).
+    let rows: Vec<(f64, f64)> = (0..=2 * steps)
+        .map(|a| {
+            let k = (a as f64 - steps as f64) * k_step;
+            let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); size];
+            for i in 0..count {
+                let tc = centre(i);
+                buf[i] = Complex::from_polar(y[i] * window[i], -0.5 * k * tc * tc);
+            }
+            fft.process(&mut buf);
+            let (j, p) = buf[lowest..size / 2]
+                .iter()
+                .map(|c| c.norm_sqr())
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap_or((0, 0.0));
+            (p, (j + lowest) as f64 * bin)
+        })
+        .collect();
+    let still = rows[steps].0;
+    let k_min = CHIRP_MIN_RESOLUTIONS * 2.0 * PI / (duration * duration);
+    let (a, &(power, omega)) = rows
+        .iter()
+        .enumerate()
+        .filter(|&(a, _)| {
+            let k = (a as f64 - steps as f64) * k_step;
+            a > 0
+                && a < 2 * steps
+                && k.abs() >= k_min
+                && rows[a].0 >= rows[a - 1].0
+                && rows[a].0 >= rows[a + 1].0
+        })
+        .max_by(|a, b| a.1.0.total_cmp(&b.1.0))?;
+    let k = (a as f64 - steps as f64) * k_step;
+    if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
+        eprintln!(
+            "lssi: sweep: dechirped line at {omega:.3} rad/s, rate {k:.3} rad/s², {:.2} times the record's strongest line",
+            power / still
+        );
+    }
+    if !(still > 0.0 && power >= CHIRP_GAIN * still) {
+        return None;
+    }
+    // The line must stand clear of its spectrum (noise has a strongest line at every rate).
+    let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); size];
+    for i in 0..count {
+        let tc = centre(i);
+        buf[i] = Complex::from_polar(y[i] * window[i], -0.5 * k * tc * tc);
+    }
+    fft.process(&mut buf);
+    let mut spectrum: Vec<f64> = buf[lowest..size / 2].iter().map(|c| c.norm_sqr()).collect();
+    let middle = spectrum.len() / 2;
+    let median = *spectrum.select_nth_unstable_by(middle, f64::total_cmp).1;
+    if !(power >= CHIRP_PROMINENCE * median) {
+        return None;
+    }
+    // The line's envelope: x demodulated along it, averaged over two of its periods.
+    let width = ((4.0 * PI / omega / step).round() as usize).max(1);
+    if count < 2 * width + 8 {
+        return None;
+    }
+    let mut prefix = vec![Complex::new(0.0, 0.0); count + 1];
+    for i in 0..count {
+        let tc = centre(i);
+        prefix[i + 1] = prefix[i] + Complex::from_polar(y[i], -(omega * tc + 0.5 * k * tc * tc));
+    }
+    let envelope: Vec<f64> = (width..count - width)
+        .map(|i| {
+            let (lo, hi) = (i - width / 2, i - width / 2 + width);
+            (prefix[hi] - prefix[lo]).norm() / width as f64
+        })
+        .collect();
+    let quarter = envelope.len() / 4;
+    let q: Vec<f64> = (0..4)
+        .map(|j| {
+            let part = &envelope[j * quarter..(j + 1) * quarter];
+            part.iter().sum::<f64>() / part.len().max(1) as f64
+        })
+        .collect();
+    let decays = q.windows(2).all(|w| w[1] < w[0]) && q[3] < 0.8 * q[0];
+    if decays {
+        return None;
+    }
+    Some(Sweep {
+        from: omega - 0.5 * k * duration,
+        to: omega + 0.5 * k * duration,
+        seconds: duration,
+        segments: 0,
+    })
 }
 
 /// The straight drift of the lines of `segments` segments, when it is a sweep's.

@@ -217,6 +217,81 @@ fn a_file_that_breaks_after_the_excerpt_is_withheld() {
     }
 }
 
+/// A file broken in only its last 5 % (after 45,600 of 48,001 rows: within the last block,
+/// whose earlier rows are clean) is withheld, the file's last rows named, for each kind of
+/// break and two seeds; the clean files pass (issue 25: the last block's median window passed
+/// such a break).
+#[test]
+fn a_file_broken_in_its_last_rows_is_withheld() {
+    let dir = tempfile::tempdir().unwrap();
+    let columns = ColumnNames::default();
+    let options = Options::default();
+    let stream = small_blocks();
+    for seed in [24, 25] {
+        let base = EvehOptions {
+            rate: 2000.0,
+            t_end: 24.0,
+            seed,
+            ..EvehOptions::default()
+        };
+        let lines = eveh_lines(dir.path(), "clean", &base);
+        let other = eveh_lines(
+            dir.path(),
+            "mono",
+            &EvehOptions {
+                wells: Wells::Monostable,
+                seed: seed + 10,
+                ..base.clone()
+            },
+        );
+        let (_, clean) = identify_file(
+            dir.path().join("clean.csv"),
+            &columns,
+            &options,
+            &stream,
+            |_, _| {},
+        )
+        .unwrap();
+        assert!(
+            clean.streamed && clean.quality.passed(),
+            "{seed}: {clean:?}"
+        );
+        let after = lines.len() - 1 - (lines.len() - 1) / 20;
+        for (k, kind) in [Break::Flat, Break::Noise, Break::Other]
+            .into_iter()
+            .enumerate()
+        {
+            let path = broken(
+                dir.path(),
+                &format!("tail-{kind:?}.csv"),
+                &lines,
+                &other,
+                after,
+                kind,
+                seed + k as u64,
+            );
+            match identify_file(&path, &columns, &options, &stream, |_, _| {}) {
+                Err(e) => println!("{kind:?}: refused: {e}"),
+                Ok((_, summary)) => {
+                    let failures = summary.quality.failures.join("; ");
+                    println!("{seed} {kind:?}: {failures}");
+                    assert!(
+                        !summary.quality.passed(),
+                        "{seed} {kind:?}: a file broken after {after} rows passed the gate"
+                    );
+                    // Where: the stuck rows, or the file's last rows.
+                    assert!(
+                        failures.contains("stuck at")
+                            || failures.contains("the file's last rows")
+                            || failures.contains("–48001)"),
+                        "{seed} {kind:?}: {failures}"
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// The CLI on files over `STREAM_BYTES` (50 kHz, 10 s): the clean file gives its model (exit
 /// 0), broken after 100,000 rows (2 s, past the 65,536-row excerpt) it is withheld (exit 3)
 /// with the gate's sentence; `cat FILE | lssi identify -` says the same. About 20 s per file

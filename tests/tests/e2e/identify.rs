@@ -17,7 +17,7 @@ fn truth() -> [(&'static str, f64); 6] {
 fn paper_options(f32: bool) -> Options {
     Options {
         omega: Some(1.0),
-        harmonics: 3,
+        harmonics: Some(3),
         poly_order: 3,
         f32,
         ..Options::default()
@@ -164,7 +164,7 @@ fn estimates_the_excitation_frequency() {
     .to_recording("eq17.csv");
     let options = Options {
         omega: None,
-        harmonics: 1,
+        harmonics: Some(1),
         ..Options::default()
     };
     let report = identify_recording(&recording, &options).expect("identifies");

@@ -319,7 +319,8 @@ class Model:
     """The equation of motion x'' = f(x, x', t) of a recording, as ``lssi identify`` finds it.
 
     Parameters mirror the command's flags: ``poly_order`` (``--poly-order``), ``harmonics``
-    (``--harmonics``: sin/cos(kΩt) for k = 1..H), ``omega`` (``--omega``, rad/s; None:
+    (``--harmonics``: sin/cos(kΩt) for k = 1..H; None, the default: 1, or 0 when the fit has
+    a measured excitation ``u``, which is the forcing), ``omega`` (``--omega``, rad/s; None:
     estimated from the data), ``family`` (None or "all", "families", "odd"), ``f32``
     (compute in f32 as a device does; the default here is f64, ``--f64``), ``smoothing``
     (False: ``--no-smoothing``), ``memory`` (``--memory``, seconds), ``refine`` (False:
@@ -335,7 +336,7 @@ class Model:
     def __init__(
         self,
         poly_order: int = 3,
-        harmonics: int = 1,
+        harmonics: Optional[int] = None,
         omega: Optional[float] = None,
         family: Optional[str] = None,
         f32: bool = False,
@@ -346,7 +347,7 @@ class Model:
     ) -> None:
         self.poly_order = _integer("poly_order", poly_order, 1, 9)
         self.coupling_order = _integer("coupling_order", coupling_order, 1, 3)
-        self.harmonics = _integer("harmonics", harmonics, 0, 8)
+        self.harmonics = None if harmonics is None else _integer("harmonics", harmonics, 0, 8)
         self.omega = _positive("omega", omega, "a positive angular frequency in rad/s (or None)")
         self.memory = _positive("memory", memory, "a positive time in seconds (or None)")
         if family is not None and not isinstance(family, str):
@@ -812,7 +813,7 @@ class Stream:
     def __init__(
         self,
         poly_order: int = 3,
-        harmonics: int = 1,
+        harmonics: Optional[int] = None,
         omega: Optional[float] = None,
         family: Optional[str] = None,
         f32: bool = False,

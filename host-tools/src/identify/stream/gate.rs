@@ -9,6 +9,13 @@
 //!   the short-horizon simulation follows the block, the terms are not collinear on it, it is
 //!   not a sweep. A block that fails withholds the model, its time span named: the file's
 //!   model must explain every part of it that the gate sees, not only the first rows.
+//! - The file's last rows on their own: the second half of the last block (which always ends
+//!   at the file's last row), judged as a block. A break in only the file's last few per cent
+//!   fills part of the last block, and the block's median window passed it; its last half
+//!   is mostly broken.
+//! - A sensor stuck at one value ([`crate::identify::blemish`]) past the excerpt: the stream
+//!   fed those rows to the identifier (only the excerpt's stuck rows are left out), so the
+//!   model is withheld, the stuck rows named.
 
 use lssi_core::Config;
 
@@ -39,6 +46,28 @@ fn span(block: &Block) -> String {
         block.first_row + 1,
         block.first_row + block.rows.len()
     )
+}
+
+/// The second half of a block (its last rows), as a block; `None` when it is too short to
+/// judge.
+fn last_half(block: &Block) -> Option<Block> {
+    let rows = &block.rows;
+    let n = rows.t.len();
+    if n < 512 {
+        return None;
+    }
+    let from = n / 2;
+    Some(Block {
+        first_row: block.first_row + from,
+        rows: crate::recording::Recording {
+            path: rows.path.clone(),
+            t: rows.t[from..].to_vec(),
+            x: rows.x[from..].to_vec(),
+            v: rows.v.as_ref().map(|v| v[from..].to_vec()),
+            u: rows.u.as_ref().map(|u| u[from..].to_vec()),
+            columns: rows.columns.clone(),
+        },
+    })
 }
 
 /// The gate over the whole file: see the module docs. `report` and `other` are the file's
@@ -72,6 +101,7 @@ pub(super) fn judge(
     };
     let mut failing = Vec::new();
     let (mut pooled, mut weight) = (0.0, 0.0);
+    let last_rows = blocks.last().and_then(last_half);
     for block in blocks {
         let shifted = reference.shifted(&block.rows);
         let rows = shifted.as_ref().unwrap_or(&block.rows);
@@ -81,12 +111,51 @@ pub(super) fn judge(
             pooled += variance * rows.len() as f64;
             weight += rows.len() as f64;
         }
+        if block.first_row > 0 {
+            let scan = crate::identify::blemish::Scan::of(rows);
+            for b in scan
+                .blemishes
+                .iter()
+                .filter(|b| b.kind == crate::identify::blemish::Kind::Stuck)
+            {
+                quality.failures.push(format!(
+                    "{} is stuck at {} over data rows {}–{} (t = {}–{} s; a sensor that froze, or a logger repeating its last reading), which the streamed model was fitted with: cut them out",
+                    b.channel,
+                    b.value,
+                    block.first_row + b.index + 1,
+                    block.first_row + b.index + b.rows,
+                    b.t,
+                    b.t_end
+                ));
+            }
+        }
         let q = quality::assess(rows, config, &local, None);
         if let Some(stable) = q.stable {
             quality.stable = Some(quality.stable.unwrap_or(true) && stable);
         }
         if !q.failures.is_empty() {
             failing.push(format!("at {}: {}", span(block), q.failures.join("; ")));
+        }
+    }
+    // The file's last rows on their own (named unless the whole last block failed already).
+    if let Some(block) = &last_rows {
+        let shifted = reference.shifted(&block.rows);
+        let rows = shifted.as_ref().unwrap_or(&block.rows);
+        let q = quality::assess(rows, config, &local, None);
+        if let Some(stable) = q.stable {
+            quality.stable = Some(quality.stable.unwrap_or(true) && stable);
+        }
+        let last_failed = blocks.last().is_some_and(|b| {
+            failing
+                .last()
+                .is_some_and(|f| f.starts_with(&format!("at {}:", span(b))))
+        });
+        if !q.failures.is_empty() && !last_failed {
+            failing.push(format!(
+                "at the file's last rows, {}: {}",
+                span(block),
+                q.failures.join("; ")
+            ));
         }
     }
     // The whole file: held-out error (over every row) against the target's variance on the
