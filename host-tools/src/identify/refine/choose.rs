@@ -334,12 +334,9 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 .filter(|((_, c), se)| *c != 0.0 && se.is_finite() && **se > 0.0)
                 .map(|((t, c), se)| (*t, c.abs() / se))
                 .min_by(|a, b| a.1.total_cmp(&b.1));
-            let Some((drop, z)) = least.filter(|(_, z)| *z < SIGNIFICANT_SE) else {
+            let Some((drop, _)) = least.filter(|(_, z)| *z < SIGNIFICANT_SE) else {
                 break;
             };
-            if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
-                eprintln!("lssi: refine: dropping {drop:?} at {z:.2} standard errors");
-            }
             let support: Vec<Term> = trials[base]
                 .support
                 .iter()
@@ -379,19 +376,6 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         }
     }
     let trials = trials;
-    if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
-        for t in &trials {
-            eprintln!(
-                "lssi: refine: support {:?}: refined {}, windows {:?}",
-                t.support,
-                t.refined.as_ref().map_or("no".to_owned(), |r| format!(
-                    "{:?} se {:?}",
-                    r.model.terms, r.standard_errors
-                )),
-                t.windows.as_ref().map(Windows::nrmse_percent)
-            );
-        }
-    }
     let against_streaming: Vec<Option<Paired>> = trials
         .iter()
         .map(|t| Paired::of(streaming_windows.as_ref()?, t.windows.as_ref()?))
@@ -609,7 +593,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 let origin = picked.origin;
                 let how = if origin != model.offsets[0] {
                     format!(
-                        "recentred on its restoring force's centre of symmetry (x = {origin:.4e}), then terms insignificant in the refinement dropped"
+                        "the model recentred on its restoring force's centre of symmetry (x = {origin:.4e}), then terms insignificant in the refinement dropped"
                     )
                 } else if picked.parent.is_some() {
                     "terms insignificant in the refinement dropped one at a time".to_owned()

@@ -504,12 +504,6 @@ pub(crate) fn least_squares(
     let mut done = 0;
     for iteration in 0..iterations {
         done = iteration + 1;
-        if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
-            eprintln!(
-                "lm k={k} segs={} it={iteration} rss={current:.6e}",
-                segs.len()
-            );
-        }
         let mut columns = jacobian(shape, &c, data, segs, &states, k)?;
         if free {
             columns.push(offset_column(&columns[k], segs, n));
