@@ -706,6 +706,28 @@ fn equation(terms: &[TermReport]) -> String {
     equation
 }
 
+/// Where the reported model's x is measured from, in words: the streaming model's origin is
+/// the equilibrium the identifier found (nearest the recording's zero); a refined model whose
+/// restoring force is odd about its origin (an x³, no x², no constant) is about its centre of
+/// symmetry, the midpoint between the wells of a double well; any other refined model's
+/// origin is the identifier's, fitted by the refinement.
+fn origin_text(report: &Report) -> &'static str {
+    let has = |name: &str| report.terms.iter().any(|t| t.term == name && t.coef != 0.0);
+    match report.reported {
+        crate::identify::refine::Chosen::Streaming => {
+            "x measured from the equilibrium the identifier found"
+        }
+        _ if has("x^3") && !has("x^2") && !has("1") => {
+            if report.wells.is_some() {
+                "x measured from the midpoint between the wells, the centre of symmetry of the restoring force"
+            } else {
+                "x measured from the centre of symmetry of the restoring force, its equilibrium"
+            }
+        }
+        _ => "x measured from the equilibrium the identifier found, moved by the refinement's fit",
+    }
+}
+
 /// The text report of `lssi identify`: the reported model's equation, which model it is and
 /// why (`refined`: the refinement's summary when it ran; `note`: why it did not), the
 /// streaming model when it is not the one shown, then the rest of [`render`].
@@ -788,9 +810,10 @@ pub fn render(report: &Report) -> String {
     ));
     if report.offsets != [0.0, 0.0] {
         out.push_str(&format!(
-            "sensor offsets: x {}, v {} (the model is about the equilibrium)\n",
+            "sensor offsets: x {}, v {} (the model is in x − {0} and v − {1}: {})\n",
             number(report.offsets[0]),
-            number(report.offsets[1])
+            number(report.offsets[1]),
+            origin_text(report)
         ));
     }
     out.push_str("\n  #  threshold   mean error  terms\n");

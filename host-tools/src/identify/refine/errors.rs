@@ -4,7 +4,7 @@ use lssi_core::Term;
 
 use super::Data;
 use super::normal::BlockNormal;
-use super::shooting::{Shape, Solution, jacobian, rss};
+use super::shooting::{Shape, Solution, jacobian, offset_column, rss};
 
 /// The standard errors of a solution's coefficients (see the module doc): the marginal
 /// covariance of the coefficients in the inverse of the full normal matrix (coefficients,
@@ -20,6 +20,11 @@ pub(crate) fn standard_errors(shape: &Shape, data: &Data, sol: &Solution) -> Opt
     let (mut base, mut plus, mut minus) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let rss0 = rss(shape, c, data, segs, states, &mut base)?;
     let mut columns = jacobian(shape, c, data, segs, states, k)?;
+    // x's offset, when fitted, is a shared parameter too (its column after the states').
+    let offset = sol.offset_fitted;
+    if offset {
+        columns.push(offset_column(&columns[k], segs, n));
+    }
     let periodic = shape
         .terms
         .iter()
@@ -34,10 +39,14 @@ pub(crate) fn standard_errors(shape: &Shape, data: &Data, sol: &Solution) -> Opt
         rss(&moved(-h), c, data, segs, states, &mut minus)?;
         columns.push((0..n).map(|i| (plus[i] - minus[i]) / (2.0 * h)).collect());
     }
-    // Shared parameters: the coefficients, then Ω (when periodic); two per segment.
+    // Shared parameters: the coefficients, then x's offset (when fitted), then Ω (when
+    // periodic); two per segment.
     let mut shared: Vec<&[f64]> = columns[..k].iter().map(Vec::as_slice).collect();
-    if periodic {
+    if offset {
         shared.push(&columns[k + 2]);
+    }
+    if periodic {
+        shared.push(&columns[k + 2 + usize::from(offset)]);
     }
     let normal = BlockNormal::assemble(
         &shared,

@@ -209,8 +209,10 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
     // A segment whose states alone cannot be fitted (a local minimum of its own, or a
     // stretch the model cannot follow) is left out of the joint fit: one such segment would
     // otherwise pull every coefficient.
-    let pass = |c: &[f64], segs: &[(usize, usize)]| {
-        let fitted = least_squares(&shape, c, data, segs, true, settings.iterations, None)?;
+    // x's offset, when free (Shape::offset_is_free), is fitted with the coefficients, and the
+    // second pass starts from the first's.
+    let pass = |shape: &Shape, c: &[f64], segs: &[(usize, usize)]| {
+        let fitted = least_squares(shape, c, data, segs, true, settings.iterations, None)?;
         let rms: Vec<f64> = segs
             .iter()
             .scan(0usize, |at, &(a, b)| {
@@ -230,7 +232,7 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
             .map(|(pair, _)| (*pair.0, *pair.1))
             .unzip();
         least_squares(
-            &shape,
+            shape,
             c,
             data,
             &kept,
@@ -240,10 +242,14 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
         )
     };
     let first = segments(0, n, settings.segment);
-    let one = pass(&start, &first)?;
+    let one = pass(&shape, &start, &first)?;
     let second_segs = segments(0, n, settings.segment.saturating_mul(4));
     let two = if settings.long_pass && second_segs.len() < first.len() {
-        pass(&one.coefficients, &second_segs)
+        let after_one = Shape {
+            offsets: one.offsets,
+            ..shape.clone()
+        };
+        pass(&after_one, &one.coefficients, &second_segs)
     } else {
         None
     };
@@ -254,6 +260,10 @@ pub fn refine(model: &SimModel, data: &Data, settings: &Settings) -> Option<Refi
             ..two
         },
         _ => one,
+    };
+    let shape = Shape {
+        offsets: best.offsets,
+        ..shape
     };
     let standard_errors = errors::standard_errors(&shape, data, &best)
         .unwrap_or_else(|| vec![f64::NAN; best.coefficients.len()]);
