@@ -33,6 +33,7 @@ mod stream_gate;
 mod sweep;
 mod system;
 mod system_gate;
+mod system_load;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;
