@@ -76,7 +76,7 @@ pub struct SystemArgs {
     /// The coil's resistance R_c, ohms (with --load-ohms): the electromagnetic harvester's
     /// inductance, transduction factor and power against load, which i' = −(R_c + R)/L i …
     /// cannot tell apart alone; a voltage channel is then read as V = R i across the load.
-    #[arg(long = "coil-ohms", value_name = "OHMS")]
+    #[arg(long = "coil-ohms", value_name = "OHMS", allow_negative_numbers = true)]
     pub coil_ohms: Option<f64>,
     /// The highest total degree of a term holding an electrical state (1: V; 2: also x*V,
     /// v*V, V^2; 3).
