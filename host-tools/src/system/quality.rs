@@ -29,7 +29,8 @@
 //!    the seeds the threshold was set on; the figures are on others).
 //! 6. **A harvester's coupling acts both ways** ([`coupling_both_ways`]).
 //! 7. **Each electrical equation's terms are determined** ([`undetermined_electrical_terms`]):
-//!    refitted on the record, none is within [`MIN_ELECTRICAL_T`] standard errors of 0 (a
+//!    in an electrical equation holding the excitation's harmonics, refitted on the record
+//!    (or as refined), none is within [`MIN_ELECTRICAL_T`] standard errors of 0 (a
 //!    spurious V' = … + x + sin + cos, nearly 0 on a single tone's steady state, passes every
 //!    other check).
 
@@ -610,7 +611,14 @@ pub fn undetermined_electrical_terms(
             .filter(|(_, c)| *c != 0.0)
             .map(|(t, _)| *t)
             .collect();
-        if terms.len() < 2 {
+        // Only an equation driven by the excitation's harmonics, as a circuit is not (the
+        // excitation reaches it through the motion): there the steady state's sinusoid makes
+        // the spurious combinations (a real record's small constant or input terms elsewhere
+        // are left to the other checks).
+        let driven = terms
+            .iter()
+            .any(|t| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_)));
+        if terms.len() < 2 || !driven {
             continue;
         }
         let Some((beta, se)) = super::report::refit(report.sample_period, data, k, &terms) else {
