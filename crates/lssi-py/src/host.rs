@@ -428,6 +428,7 @@ pub fn fit_system(
     let args = system::SystemArgs {
         columns: system::ElectricalColumns::default(),
         load_ohms,
+        coil_ohms: None,
         coupling_order,
     };
     let report =

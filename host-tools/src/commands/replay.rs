@@ -382,21 +382,14 @@ pub fn replay_system(
     args: &ReplayArgs,
     data: &crate::system::SystemData,
 ) -> Result<SystemReplayReport, CliError> {
-    if let Some(r) = args.system.load_ohms
-        && !(r.is_finite() && r > 0.0)
-    {
-        return Err(CliError::BadFlag {
-            flag: "--load-ohms",
-            value: r.to_string(),
-            requirement: "a positive resistance in ohms".into(),
-        });
-    }
+    args.system.check_load()?;
     let setup = setup(args)?;
     session::replay_system(
         &setup,
         data,
         args.system.coupling_order,
         args.system.load_ohms,
+        args.system.coil_ohms,
     )
 }
 

@@ -164,6 +164,7 @@ pub fn replay_system(
     data: &SystemData,
     coupling_order: u8,
     load_ohms: Option<f64>,
+    coil_ohms: Option<f64>,
 ) -> Result<SystemReplayReport, CliError> {
     let file = setup.file.display().to_string();
     if setup.quantise {
@@ -221,6 +222,7 @@ pub fn replay_system(
                 &replayed.report,
                 &data,
                 ohms,
+                coil_ohms,
             ));
         }
         replayed

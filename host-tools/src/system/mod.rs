@@ -80,10 +80,46 @@ pub struct SystemArgs {
     /// forcing frequency.
     #[arg(long = "load-ohms", value_name = "OHMS")]
     pub load_ohms: Option<f64>,
+    /// The coil's resistance R_c, ohms (with --load-ohms): the electromagnetic harvester's
+    /// inductance, transduction factor and power against load, which i' = −(R_c + R)/L i …
+    /// cannot tell apart alone; a voltage channel is then read as V = R i across the load.
+    #[arg(long = "coil-ohms", value_name = "OHMS", allow_negative_numbers = true)]
+    pub coil_ohms: Option<f64>,
     /// The highest total degree of a term holding an electrical state (1: V; 2: also x*V,
     /// v*V, V^2; 3).
     #[arg(long = "coupling-order", value_name = "N", default_value_t = 1)]
     pub coupling_order: u8,
+}
+
+impl SystemArgs {
+    /// Checks `--load-ohms` (positive) and `--coil-ohms` (not negative, and only with
+    /// `--load-ohms`).
+    pub fn check_load(&self) -> Result<(), CliError> {
+        if let Some(r) = self.load_ohms
+            && !(r.is_finite() && r > 0.0)
+        {
+            return Err(CliError::BadFlag {
+                flag: "--load-ohms",
+                value: r.to_string(),
+                requirement: "a positive resistance in ohms".into(),
+            });
+        }
+        if let Some(r) = self.coil_ohms {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err(CliError::BadFlag {
+                    flag: "--coil-ohms",
+                    value: r.to_string(),
+                    requirement: "the coil's resistance in ohms, 0 or more".into(),
+                });
+            }
+            if self.load_ohms.is_none() {
+                return Err(CliError::Input(
+                    "--coil-ohms needs the load the coil was recorded across (--load-ohms R): the load analysis uses both.".into(),
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The flags of `lssi simulate` for systems.
@@ -605,6 +641,8 @@ pub fn run<T: Real>(
 pub fn refuse_stray_flags(file: &Path, args: &SystemArgs) -> Result<(), CliError> {
     let stray = if args.load_ohms.is_some() {
         Some("--load-ohms")
+    } else if args.coil_ohms.is_some() {
+        Some("--coil-ohms")
     } else if args.coupling_order != 1 {
         Some("--coupling-order")
     } else {
@@ -638,15 +676,7 @@ pub fn identify_system(
     args: &SystemArgs,
     no_refine: bool,
 ) -> Result<Outcome, CliError> {
-    if let Some(r) = args.load_ohms
-        && !(r.is_finite() && r > 0.0)
-    {
-        return Err(CliError::BadFlag {
-            flag: "--load-ohms",
-            value: r.to_string(),
-            requirement: "a positive resistance in ohms".into(),
-        });
-    }
+    args.check_load()?;
     if args.load_ohms.is_some() && data.second.is_some() {
         return Err(CliError::Input(format!(
             "{}: --load-ohms (the power analysis) covers a harvester with one displacement, and this recording has two ({}).",
@@ -684,7 +714,7 @@ pub fn identify_system(
     }
     report.quality = Some(quality);
     if let Some(r) = args.load_ohms {
-        report.harvester = Some(power::harvester(&report, data, r));
+        report.harvester = Some(power::harvester(&report, data, r, args.coil_ohms));
     }
     Ok(Outcome::Passed(Box::new(report)))
 }

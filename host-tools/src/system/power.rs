@@ -17,6 +17,19 @@
 //! - the predicted mean power against the load, λ(R′) = 1/(R′ C_p) and κ unchanged, and the
 //!   optimal load; and against the forcing frequency (the harmonics' Ω scaled, or u replaced
 //!   by a tone of u's RMS at that frequency).
+//!
+//! With the electromagnetic form (a magnet in a coil of resistance R_c and inductance L
+//! across the load R: m x'' + … + Φ i = F, L i' + (R_c + R) i − Φ x' = 0), recorded as the
+//! current i, x'' = … + χ i and i' = −λ i − κ v with χ = −Φ/m, λ = (R_c + R)/L, κ = −Φ/L:
+//!
+//! - the electrical time constant L/(R_c + R) = 1/λ, the coupling factor
+//!   k² = Φ²/(k L + Φ²) = κ χ / (k/m + κ χ) and the mean power R i² need no more;
+//! - λ alone cannot tell R_c from L, so the inductance L = (R_c + R)/λ, Φ = −κ L, m = −Φ/χ
+//!   and the power against the load (λ(R′) = (R_c + R′)/L, κ and χ unchanged) need the coil's
+//!   resistance (`--coil-ohms R_c`);
+//! - a voltage V = R i across the load with `--coil-ohms` is read as this form, not the
+//!   piezoelectric one: i = V/R, so χ_i = R χ, κ_i = κ/R, and at R′ the V equation's χ and κ
+//!   scale by R/R′ and R′/R.
 
 use serde::Serialize;
 
@@ -33,16 +46,34 @@ pub struct PowerPoint {
     pub power_w: Option<f64>,
 }
 
+/// Which transducer the electrical equation is read as.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Transducer {
+    /// A piezoelectric patch (capacitance C_p) across the load: V' = −V/(R C_p) − κ v.
+    Piezoelectric,
+    /// A coil (resistance R_c, inductance L) across the load: i' = −(R_c + R)/L i − κ v.
+    Electromagnetic,
+}
+
 /// The harvester in physical terms (see the module's documentation).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Harvester {
+    /// How the electrical equation is read: piezoelectric (a voltage without `--coil-ohms`)
+    /// or electromagnetic (a current, or a voltage with `--coil-ohms`).
+    pub transducer: Transducer,
     /// The load the voltage was recorded across, ohms.
     pub load_ohms: f64,
-    /// −(the V term of V'), 1/s.
+    /// The coil's resistance R_c (`--coil-ohms`), ohms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coil_ohms: Option<f64>,
+    /// The electrical channel: `V` or `i`.
+    pub channel: &'static str,
+    /// −(the V or i term of V' or i'), 1/s.
     pub lambda: Option<f64>,
-    /// −(the v term of V'), V per unit of v.
+    /// −(the v term of V' or i'), V (or A) per unit of v.
     pub kappa: Option<f64>,
-    /// The V term of x'' (per unit mass), units of x'' per volt.
+    /// The V (or i) term of x'' (per unit mass), units of x'' per volt (or ampere).
     pub chi: Option<f64>,
     /// The linear stiffness per unit mass at the stable equilibrium, 1/s².
     pub stiffness_per_mass: Option<f64>,
@@ -52,15 +83,21 @@ pub struct Harvester {
     pub capacitance_f: Option<f64>,
     /// Coupling θ = κ C_p, C per unit of x.
     pub theta: Option<f64>,
-    /// Mass m = θ/χ (kg when x is in metres).
+    /// Electromagnetic, with `--coil-ohms`: the coil's inductance L = (R_c + R)/λ, H.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inductance_h: Option<f64>,
+    /// Electromagnetic, with `--coil-ohms`: the transduction factor Φ = −κ_i L, N/A (V s/m).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phi: Option<f64>,
+    /// Mass m = θ/χ, or −Φ/χ_i (kg when x is in metres).
     pub mass: Option<f64>,
     /// Electromechanical coupling factor k² = κχ / (k/m + κχ).
     pub coupling_k2: Option<f64>,
-    /// Electrical time constant R C_p = 1/λ, s.
+    /// Electrical time constant R C_p, or L/(R_c + R): 1/λ, s.
     pub time_constant_s: Option<f64>,
-    /// Measured mean V²/R over the record's second half, W.
+    /// Measured mean power at the load (V²/R or R i²) over the record's second half, W.
     pub power_measured_w: f64,
-    /// Predicted mean V²/R (the free run) over the same span, W.
+    /// Predicted mean power at the load (the free run) over the same span, W.
     pub power_predicted_w: Option<f64>,
     /// Predicted mean power against the load.
     pub load_sweep: Vec<PowerPoint>,
@@ -123,18 +160,67 @@ fn stable_equilibrium(sim: &SystemSim, mean: f64, span: f64) -> Option<(f64, f64
     best
 }
 
-/// The mean of V²/R over the second half of `v`; `None` when it holds non-finite values.
-fn mean_power(v: &[f64], ohms: f64) -> Option<f64> {
+/// The mean of the square of `v` over its second half; `None` when it holds non-finite
+/// values.
+fn mean_square(v: &[f64]) -> Option<f64> {
     let half = &v[v.len() / 2..];
     half.iter()
         .all(|q| q.is_finite())
-        .then(|| half.iter().map(|q| q * q).sum::<f64>() / half.len().max(1) as f64 / ohms)
+        .then(|| half.iter().map(|q| q * q).sum::<f64>() / half.len().max(1) as f64)
 }
 
-/// The harvester in physical terms for load `ohms` (see the module's documentation).
-pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvester {
+/// How the electrical channel maps to the power at a load and how the electrical
+/// equation changes with the load.
+#[derive(Clone, Copy, Debug)]
+struct Circuit {
+    transducer: Transducer,
+    /// The channel is a current (else a voltage across the load).
+    current: bool,
+    /// The recorded load, ohms.
+    ohms: f64,
+    /// The coil's resistance, when given.
+    coil: Option<f64>,
+}
+
+impl Circuit {
+    /// The mean power at `load` of a channel whose mean square is `ms`.
+    fn power(&self, ms: f64, load: f64) -> f64 {
+        if self.current { ms * load } else { ms / load }
+    }
+
+    /// The factors (λ, κ, χ) scale by at the load `load`, or `None` when they cannot be
+    /// known (an electromagnetic harvester without its coil resistance).
+    fn scaling(&self, load: f64) -> Option<(f64, f64, f64)> {
+        match self.transducer {
+            // λ = 1/(R C_p).
+            Transducer::Piezoelectric => Some((self.ohms / load, 1.0, 1.0)),
+            Transducer::Electromagnetic => {
+                let rc = self.coil?;
+                let lambda = (rc + load) / (rc + self.ohms);
+                // A voltage V = R i: κ_V = R κ_i, χ_V = χ_i / R.
+                if self.current {
+                    Some((lambda, 1.0, 1.0))
+                } else {
+                    Some((lambda, load / self.ohms, self.ohms / load))
+                }
+            }
+        }
+    }
+}
+
+/// The harvester in physical terms for load `ohms` and, for an electromagnetic harvester,
+/// the coil's resistance `coil_ohms` (see the module's documentation).
+pub fn harvester(
+    report: &SystemReport,
+    data: &SystemData,
+    ohms: f64,
+    coil_ohms: Option<f64>,
+) -> Harvester {
     let mut h = Harvester {
+        transducer: Transducer::Piezoelectric,
         load_ohms: ohms,
+        coil_ohms,
+        channel: "V",
         lambda: None,
         kappa: None,
         chi: None,
@@ -142,6 +228,8 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
         equilibrium: None,
         capacitance_f: None,
         theta: None,
+        inductance_h: None,
+        phi: None,
         mass: None,
         coupling_k2: None,
         time_constant_s: None,
@@ -158,24 +246,44 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
             .push("the model has a term the simulator does not know".into());
         return h;
     };
+    // The voltage across the load if recorded, else the current.
     let Some(kv) = sim
         .electrical
         .iter()
         .position(|e| *e == Electrical::Voltage)
+        .or_else(|| {
+            sim.electrical
+                .iter()
+                .position(|e| *e == Electrical::Current)
+        })
     else {
-        h.notes.push(
-            "the load analysis needs a voltage channel V (the recording has a current)".into(),
-        );
+        h.notes
+            .push("the load analysis needs an electrical channel (V or i)".into());
         return h;
     };
+    let current = sim.electrical[kv] == Electrical::Current;
+    if current || coil_ohms.is_some() {
+        h.transducer = Transducer::Electromagnetic;
+    }
+    if current {
+        h.channel = "i";
+    }
+    let circuit = Circuit {
+        transducer: h.transducer,
+        current,
+        ohms,
+        coil: coil_ohms,
+    };
     let measured = &data.electrical[kv].values;
-    h.power_measured_w = mean_power(measured, ohms).unwrap_or(f64::NAN);
+    h.power_measured_w = mean_square(measured).map_or(f64::NAN, |m| circuit.power(m, ohms));
     let mut powers = [0u8; 6];
     powers[2 + kv] = 1;
-    let v_term = SimTerm::Monomial(powers);
-    let lambda = -coefficient(&sim, 1 + kv, v_term);
-    let kappa = -coefficient(&sim, 1 + kv, SimTerm::Monomial([0, 1, 0, 0, 0, 0]));
-    let chi = coefficient(&sim, 0, v_term);
+    let e_term = SimTerm::Monomial(powers);
+    let v_term = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
+    let lambda = -coefficient(&sim, 1 + kv, e_term);
+    let kappa = -coefficient(&sim, 1 + kv, v_term);
+    let chi = coefficient(&sim, 0, e_term);
+    let e = h.channel;
     let r = &data.recording;
     let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;
     let span = 4.0 * rms(&r.x.iter().map(|q| q - mean_x).collect::<Vec<_>>());
@@ -187,55 +295,102 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
             "the mechanical equation has no stable equilibrium within 4 RMS of the mean x, so no stiffness and no k²".into(),
         );
     }
+    if kappa != 0.0 {
+        h.kappa = Some(kappa);
+    } else {
+        h.notes
+            .push(format!("{e}' has no v term (κ = 0), so no coupling"));
+    }
+    if chi != 0.0 {
+        h.chi = Some(chi);
+    } else {
+        h.notes
+            .push(format!("x'' has no {e} term (χ = 0), so no mass and no k²"));
+    }
+    if let (Some(k), true) = (h.stiffness_per_mass, kappa * chi != 0.0) {
+        h.coupling_k2 = Some(kappa * chi / (k + kappa * chi));
+    }
     if lambda > 0.0 {
-        let cp = 1.0 / (lambda * ohms);
         h.lambda = Some(lambda);
-        h.capacitance_f = Some(cp);
         h.time_constant_s = Some(1.0 / lambda);
-        if kappa != 0.0 {
-            h.kappa = Some(kappa);
-            h.theta = Some(kappa * cp);
-        } else {
-            h.notes
-                .push("V' has no v term (κ = 0), so no θ and no k²".into());
-        }
-        if chi != 0.0 {
-            h.chi = Some(chi);
-            if kappa != 0.0 {
-                h.mass = Some(kappa * cp / chi);
+        match (h.transducer, coil_ohms) {
+            (Transducer::Piezoelectric, _) => {
+                let cp = 1.0 / (lambda * ohms);
+                h.capacitance_f = Some(cp);
+                if kappa != 0.0 {
+                    h.theta = Some(kappa * cp);
+                    if chi != 0.0 {
+                        h.mass = Some(kappa * cp / chi);
+                    }
+                }
             }
-        } else {
-            h.notes
-                .push("x'' has no V term (χ = 0), so no mass and no k²".into());
-        }
-        if let (Some(k), true) = (h.stiffness_per_mass, kappa * chi != 0.0) {
-            h.coupling_k2 = Some(kappa * chi / (k + kappa * chi));
+            (Transducer::Electromagnetic, Some(rc)) => {
+                let l = (rc + ohms) / lambda;
+                h.inductance_h = Some(l);
+                // In amperes: i = V/R.
+                let s = if current { 1.0 } else { ohms };
+                if kappa != 0.0 {
+                    let phi = -kappa / s * l;
+                    h.phi = Some(phi);
+                    if chi != 0.0 {
+                        h.mass = Some(-phi / (chi * s));
+                    }
+                }
+            }
+            (Transducer::Electromagnetic, None) => h.notes.push(format!(
+                "the inductance L, Φ, the mass and the power against the load need the coil's resistance (--coil-ohms R_c): λ = (R_c + R)/L = {} 1/s cannot tell R_c from L",
+                super::report::number(lambda)
+            )),
         }
     } else {
         h.notes.push(format!(
-            "V' has no decay term −λ V with λ > 0 (λ = {lambda}), so no C_p, no time constant and no load sweep"
+            "{e}' has no decay term −λ {e} with λ > 0 (λ = {lambda}), so no time constant and no load sweep"
         ));
     }
     let u: Vec<f64> = r.u.clone().unwrap_or_default();
     let start = first_state(data);
     let bound = rms(&r.x) + rms(measured) + 1.0;
-    let power_of = |model: &SystemSim, u: &[f64]| -> Option<f64> {
+    let power_of = |model: &SystemSim, u: &[f64], load: f64| -> Option<f64> {
         let states = model.run(&r.t, u, start, bound);
         let v: Vec<f64> = states.iter().map(|s| s[2 + kv]).collect();
-        mean_power(&v, ohms)
+        mean_square(&v).map(|m| circuit.power(m, load))
     };
-    h.power_predicted_w = power_of(&sim, &u);
+    h.power_predicted_w = power_of(&sim, &u, ohms);
     if h.power_predicted_w.is_none() {
         h.notes
             .push("the free run at the recorded load diverged".into());
     }
-    // The load sweep: λ(R') = λ R / R'.
-    if lambda > 0.0 {
-        let cp = 1.0 / (lambda * ohms);
-        let centre = if report.omega > 0.0 {
-            1.0 / (report.omega * cp)
-        } else {
-            ohms
+    // The model at another load: λ, κ and χ scaled as the circuit says.
+    let at_load = |load: f64| -> Option<SystemSim> {
+        let (fl, fk, fc) = circuit.scaling(load)?;
+        let mut model = sim.clone();
+        for (t, c) in model.equations[1 + kv].iter_mut() {
+            if *t == e_term {
+                *c = -lambda * fl;
+            } else if *t == v_term {
+                *c *= fk;
+            }
+        }
+        for (t, c) in model.equations[0].iter_mut() {
+            if *t == e_term {
+                *c *= fc;
+            }
+        }
+        Some(model)
+    };
+    let power_at =
+        |load: f64| -> Option<f64> { at_load(load).and_then(|m| power_of(&m, &u, load)) };
+    if lambda > 0.0 && circuit.scaling(ohms).is_some() {
+        // Centred on the impedance matching the source's at Ω: 1/(Ω C_p), or
+        // |R_c + jΩL| for a coil.
+        let centre = match (h.transducer, h.capacitance_f, h.inductance_h, coil_ohms) {
+            (Transducer::Piezoelectric, Some(cp), _, _) if report.omega > 0.0 => {
+                1.0 / (report.omega * cp)
+            }
+            (Transducer::Electromagnetic, _, Some(l), Some(rc)) => {
+                rc.hypot(report.omega * l).max(1e-3 * ohms)
+            }
+            _ => ohms,
         };
         let mut loads: Vec<f64> = (-8..=8)
             .map(|k| centre * 10f64.powf(f64::from(k) / 4.0))
@@ -243,29 +398,11 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
         loads.push(ohms);
         loads.sort_by(f64::total_cmp);
         for &load in &loads {
-            let mut model = sim.clone();
-            let lam = 1.0 / (load * cp);
-            for (t, c) in model.equations[1 + kv].iter_mut() {
-                if *t == v_term {
-                    *c = -lam;
-                }
-            }
-            // The power at R' is V²/R'.
-            let p = power_of(&model, &u).map(|p| p * ohms / load);
             h.load_sweep.push(PowerPoint {
                 at: load,
-                power_w: p,
+                power_w: power_at(load),
             });
         }
-        let power_at = |load: f64| -> Option<f64> {
-            let mut model = sim.clone();
-            for (t, c) in model.equations[1 + kv].iter_mut() {
-                if *t == v_term {
-                    *c = -1.0 / (load * cp);
-                }
-            }
-            power_of(&model, &u).map(|p| p * ohms / load)
-        };
         let best = h
             .load_sweep
             .iter()
@@ -320,7 +457,7 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
             };
             h.frequency_sweep.push(PowerPoint {
                 at: w,
-                power_w: power_of(&model, &tone),
+                power_w: power_of(&model, &tone, ohms),
             });
         }
     } else {
@@ -331,13 +468,34 @@ pub fn harvester(report: &SystemReport, data: &SystemData, ohms: f64) -> Harvest
 }
 
 impl Harvester {
+    /// How the mean power at the load is written: `V²/R` or `R i²`.
+    pub fn power_formula(&self) -> &'static str {
+        if self.channel == "i" {
+            "R i²"
+        } else {
+            "V²/R"
+        }
+    }
+
     /// The text table.
     pub fn render(&self) -> String {
         let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
-        let mut out = format!(
-            "harvester at the recorded load R = {} Ω (per-unit-mass forms: x'' ∋ χ V, V' = −λ V − κ v; SI units when x is in m and V in V)\n",
-            super::report::number(self.load_ohms)
-        );
+        let e = self.channel;
+        let mut out = match self.transducer {
+            Transducer::Piezoelectric => format!(
+                "harvester at the recorded load R = {} Ω (per-unit-mass forms: x'' ∋ χ V, V' = −λ V − κ v; SI units when x is in m and V in V)\n",
+                super::report::number(self.load_ohms)
+            ),
+            Transducer::Electromagnetic => format!(
+                "electromagnetic harvester at the recorded load R = {} Ω, {} (per-unit-mass forms: x'' ∋ χ {e}, {e}' = −λ {e} − κ v; SI units when x is in m)\n",
+                super::report::number(self.load_ohms),
+                self.coil_ohms
+                    .map_or("coil resistance not given".to_owned(), |c| format!(
+                        "coil R_c = {} Ω",
+                        super::report::number(c)
+                    ))
+            ),
+        };
         out.push_str(&format!(
             "  λ = {} 1/s   κ = {}   χ = {}   stiffness per mass k/m = {} 1/s² (at x = {})\n",
             n(self.lambda),
@@ -346,19 +504,37 @@ impl Harvester {
             n(self.stiffness_per_mass),
             n(self.equilibrium)
         ));
+        match self.transducer {
+            Transducer::Piezoelectric => {
+                out.push_str(&format!(
+                    "  C_p = 1/(λR) = {} F   θ = κ C_p = {} N/V   m = θ/χ = {} kg   time constant R C_p = {} s\n",
+                    n(self.capacitance_f),
+                    n(self.theta),
+                    n(self.mass),
+                    n(self.time_constant_s)
+                ));
+                out.push_str(&format!(
+                    "  coupling factor k² = θ²/(C_p k + θ²) = κχ/(k/m + κχ) = {}\n",
+                    n(self.coupling_k2)
+                ));
+            }
+            Transducer::Electromagnetic => {
+                out.push_str(&format!(
+                    "  L = (R_c + R)/λ = {} H   Φ = −κ L = {} N/A   m = −Φ/χ = {} kg   time constant L/(R_c + R) = {} s\n",
+                    n(self.inductance_h),
+                    n(self.phi),
+                    n(self.mass),
+                    n(self.time_constant_s)
+                ));
+                out.push_str(&format!(
+                    "  coupling factor k² = Φ²/(k L + Φ²) = κχ/(k/m + κχ) = {}\n",
+                    n(self.coupling_k2)
+                ));
+            }
+        }
         out.push_str(&format!(
-            "  C_p = 1/(λR) = {} F   θ = κ C_p = {} N/V   m = θ/χ = {} kg   time constant R C_p = {} s\n",
-            n(self.capacitance_f),
-            n(self.theta),
-            n(self.mass),
-            n(self.time_constant_s)
-        ));
-        out.push_str(&format!(
-            "  coupling factor k² = θ²/(C_p k + θ²) = κχ/(k/m + κχ) = {}\n",
-            n(self.coupling_k2)
-        ));
-        out.push_str(&format!(
-            "  mean power V²/R over the second half: measured {} W, predicted {} W (free run from the first row)\n",
+            "  mean power {} over the second half: measured {} W, predicted {} W (free run from the first row)\n",
+            self.power_formula(),
             super::report::number(self.power_measured_w),
             n(self.power_predicted_w)
         ));

@@ -503,12 +503,23 @@ pub fn simulate_command(
             .electrical
             .iter()
             .position(|e| *e == Electrical::Voltage)
+            .or_else(|| {
+                sim.electrical
+                    .iter()
+                    .position(|e| *e == Electrical::Current)
+            })
     {
-        let sim_v = column(2 * sim.displacements + k);
-        let p_sim = rms(&sim_v).powi(2) / ohms;
-        let p_rec = rms(&data.electrical[k].values).powi(2) / ohms;
+        // V²/R across the load, or R i² through it.
+        let (formula, power): (&str, fn(f64, f64) -> f64) =
+            if sim.electrical[k] == Electrical::Current {
+                ("R i²", |ms, r| ms * r)
+            } else {
+                ("V²/R", |ms, r| ms / r)
+            };
+        let p_sim = power(rms(&column(2 * sim.displacements + k)).powi(2), ohms);
+        let p_rec = power(rms(&data.electrical[k].values).powi(2), ohms);
         text.push_str(&format!(
-            "  mean power V²/R at {ohms} Ω: simulated {p_sim:.4e} W, recorded {p_rec:.4e} W ({:+.1} %)\n",
+            "  mean power {formula} at {ohms} Ω: simulated {p_sim:.4e} W, recorded {p_rec:.4e} W ({:+.1} %)\n",
             100.0 * (p_sim / p_rec - 1.0)
         ));
     }

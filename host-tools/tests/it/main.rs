@@ -35,6 +35,8 @@ mod stuck;
 mod sweep;
 mod system;
 mod system_gate;
+mod system_load;
+mod system_terms;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;

@@ -23,6 +23,15 @@ impl Figure for PowerLoad<'_> {
             .filter_map(|p| p.power_w.map(|w| (p.at, w)))
             .filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.1.is_finite())
             .collect();
+        if h.load_sweep.is_empty()
+            && h.transducer == crate::system::power::Transducer::Electromagnetic
+            && h.coil_ohms.is_none()
+        {
+            return Err(PlotError::Skipped(
+                "the power against the load of a coil needs its resistance (--coil-ohms R_c)."
+                    .into(),
+            ));
+        }
         if points.len() < 2 {
             return Err(PlotError::Skipped(
                 "the load sweep has fewer than two finite powers.".into(),
@@ -41,11 +50,15 @@ impl Figure for PowerLoad<'_> {
         let xhi = points.last().map_or(10.0, |p| p.0) * 1.2;
         let title = match (h.optimal_load_ohms, h.optimal_power_w) {
             (Some(r), Some(p)) => format!(
-                "predicted mean power V²/R against the load: optimum {} W at {} Ω",
+                "predicted mean power {} against the load: optimum {} W at {} Ω",
+                h.power_formula(),
                 coefficient(p),
                 coefficient(r)
             ),
-            _ => "predicted mean power V²/R against the load".to_owned(),
+            _ => format!(
+                "predicted mean power {} against the load",
+                h.power_formula()
+            ),
         };
         let root = root.titled(&title, font(CAPTION))?;
         let mut chart = ChartBuilder::on(&root)
@@ -66,7 +79,14 @@ impl Figure for PowerLoad<'_> {
             .draw()?;
         chart
             .draw_series(LineSeries::new(points.clone(), MODEL.stroke_width(3)))?
-            .label("predicted (the identified system's free run, λ(R) = 1/(R C_p))")
+            .label(match h.transducer {
+                crate::system::power::Transducer::Piezoelectric => {
+                    "predicted (the identified system's free run, λ(R) = 1/(R C_p))"
+                }
+                crate::system::power::Transducer::Electromagnetic => {
+                    "predicted (the identified system's free run, λ(R) = (R_c + R)/L)"
+                }
+            })
             .legend(line_legend(MODEL, 3));
         chart.draw_series(points.iter().map(|p| Circle::new(*p, 5, MODEL.filled())))?;
         if let Some(m) = measured {
@@ -142,7 +162,8 @@ impl Figure for PowerFrequency<'_> {
             .unwrap_or((0.0, 0.0));
         let root = root.titled(
             &format!(
-                "predicted mean power V²/R against the forcing frequency at R = {} Ω: most at {:.3} Hz",
+                "predicted mean power {} against the forcing frequency at R = {} Ω: most at {:.3} Hz",
+                h.power_formula(),
                 coefficient(h.load_ohms),
                 best.0
             ),
