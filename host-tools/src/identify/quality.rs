@@ -22,6 +22,8 @@
 //! 8. **A decay the model can follow**: x dying out while the model printed has no damping and
 //!    no forcing ([`undamped_decay`]; judged in [`crate::identify::pipeline`] after refinement,
 //!    which can bring back a damping the streaming selection lost).
+//! 9. **Every printed term resolved**: a refined model's term under [`MIN_TERM_SE`] standard
+//!    error from 0 ([`unresolved_term`]; in [`crate::identify::pipeline`] too).
 
 use crate::identify::blemish::{CleanWindows, Scan};
 use crate::identify::{Report, WINDOW_CAPACITY};
@@ -524,6 +526,44 @@ pub fn undamped_decay(recording: &Recording, report: &Report) -> Option<String> 
     })
 }
 
+/// A printed term resolved by fewer standard errors than this is not resolved: its ± covers 0.
+pub const MIN_TERM_SE: f64 = 1.0;
+
+/// Whether a term of the printed model is not resolved by the record: a refined model's term
+/// whose coefficient is under [`MIN_TERM_SE`] of its standard errors from 0 (its ± covers 0,
+/// and refinement could not drop it without predicting the held-out part worse: the record,
+/// often a barely predictable one, cannot tell whether it belongs). The sentence, or `None`.
+pub fn unresolved_term(report: &Report) -> Option<String> {
+    let weak: Vec<String> = report
+        .terms
+        .iter()
+        .filter_map(|t| {
+            let se = t.se?;
+            (se.is_finite() && se > 0.0 && t.coef.abs() < MIN_TERM_SE * se).then(|| {
+                format!(
+                    "{} ({:.4e} ± {:.2e}, {:.1} standard errors)",
+                    t.term,
+                    t.coef,
+                    se,
+                    t.coef.abs() / se
+                )
+            })
+        })
+        .collect();
+    (!weak.is_empty()).then(|| {
+        format!(
+            "the printed model's {} {} {} not resolved by the record: {} ± {} 0, and the model without {} predicts the held-out half worse, so the record cannot tell whether {} (a longer or less noisy record)",
+            if weak.len() == 1 { "term" } else { "terms" },
+            weak.join(", "),
+            if weak.len() == 1 { "is" } else { "are" },
+            if weak.len() == 1 { "its" } else { "their" },
+            if weak.len() == 1 { "covers" } else { "cover" },
+            if weak.len() == 1 { "it" } else { "them" },
+            if weak.len() == 1 { "it belongs" } else { "they belong" }
+        )
+    })
+}
+
 /// Runs the checks on `report` (made from `recording` with `config`); `other` is the same
 /// recording identified in the other precision, if it was.
 pub fn assess(
@@ -605,7 +645,9 @@ pub fn assess(
     // A swept forcing without its u column: named as such when the model takes the forcing
     // for cos(Ωt) at one Ω, fails for it, or has no forcing where the recording grows or goes
     // on after the model's free run has died out (a ringdown's drifting frequency, which a
-    // model without forcing follows, is not a reason).
+    // model without forcing follows, is not a reason); not when the model passed every check
+    // and its free run follows the whole record (a single well's transient drifting beside a
+    // steady forcing).
     let forced = report
         .model
         .iter()
@@ -615,6 +657,8 @@ pub fn assess(
             || !quality.failures.is_empty()
             || crate::identify::sweep::grows(recording)
             || crate::identify::sweep::outlasts_model(recording, report) == Some(true))
+        && !(quality.failures.is_empty()
+            && crate::identify::sweep::model_follows(recording, report) == Some(true))
         && let Some(sweep) = crate::identify::sweep::sweep(recording)
     {
         quality.failures = vec![sweep.sentence()];

@@ -425,6 +425,35 @@ pub fn outlasts_model(recording: &Recording, report: &crate::identify::Report) -
     Some(rms(&x[tail..]) > OUTLASTS * rms(&run.x[tail..]))
 }
 
+/// Whether the model's free run over the whole record, from the state fitted on its first two
+/// periods, follows the recording (NRMSE at most [`FOLLOWS_PERCENT`] % of x's standard
+/// deviation). A swept forcing's line moves by at least two resolution widths, so a model
+/// forced at one Ω slips two cycles and cannot follow it; a hardening (or softening) single
+/// well's transient, whose frequency drifts as it dies out beside a steady forcing, is
+/// followed by the model that explains it. `None` when it cannot be measured.
+pub fn model_follows(recording: &Recording, report: &crate::identify::Report) -> Option<bool> {
+    use crate::identify::refine::{Data, free_run_after_fitted_start, mean_period_samples};
+    use crate::identify::simulate::SimModel;
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let data = Data {
+        t: &recording.t[stretch.clone()],
+        x: &recording.x[stretch.clone()],
+        u: recording.u.as_ref().map(|u| &u[stretch.clone()]),
+    };
+    let period = mean_period_samples(data.x)?;
+    let segment = ((2.0 * period).round() as usize).max(16);
+    if data.x.len() < 4 * segment {
+        return None;
+    }
+    let fit = free_run_after_fitted_start(&SimModel::from_report(report), &data, segment)?;
+    Some(fit.nrmse_percent <= FOLLOWS_PERCENT)
+}
+
+/// How closely (NRMSE, % of x's standard deviation) the model's free run must follow the whole
+/// record for [`model_follows`].
+pub const FOLLOWS_PERCENT: f64 = 30.0;
+
 /// How much more the recording must oscillate at its end than the model's free run for
 /// [`outlasts_model`].
 pub const OUTLASTS: f64 = 3.0;

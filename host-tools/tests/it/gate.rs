@@ -285,3 +285,31 @@ fn harvester_and_paper_recordings_still_pass() {
         );
     }
 }
+
+/// A refined model printed with a term its ± does not resolve from 0 is withheld, naming the
+/// term (issue 25: a bistable harvester hopping between its wells at 5 % noise, 483 Hz, 16 s,
+/// printed `x*v^2 = 1662 ± 2190` beside the true terms; scripts/hostile-eveh.sh seed 9116).
+#[test]
+fn a_printed_term_its_standard_error_does_not_resolve_is_withheld() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "hop.csv",
+        &[
+            "eveh",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            "2.3",
+            "--rate",
+            "483",
+            "--t-end",
+            "16",
+            "--delta",
+            "0.05",
+            "--seed",
+            "9116",
+        ],
+    );
+    assert_withheld(&path, "is not resolved by the record: its ± covers 0");
+}
