@@ -321,10 +321,10 @@ pub fn replay_system_over(
     })
 }
 
-/// A recording's rows averaged `k` at a time (the last incomplete group dropped): what a
-/// device whose ADC converts at the recording's rate delivers at a row rate `k` times lower
-/// through a first-order CIC (the STM32L4's oversampler, `lssi_device::decimate` of order 1).
-/// Every column is averaged, t too (a row stands for the middle of its conversions).
+/// A recording's rows averaged `k` at a time (the last incomplete group dropped): a
+/// first-order CIC (the STM32L4's oversampler, `lssi_device::decimate` of order 1) before
+/// its droop compensator ([`compensate_rows`]). Every column is averaged, t too (a row
+/// stands for the middle of its conversions).
 pub fn average_rows(values: &[f64], k: usize) -> Vec<f64> {
     let k = k.max(1);
     values
@@ -333,17 +333,52 @@ pub fn average_rows(values: &[f64], k: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The recording at `k` times fewer rows ([`average_rows`] on every channel).
+/// The side tap of the droop compensator after a first-order CIC: `a = N / 24`, N = 1 (as
+/// `lssi_device::decimate::Decimator` of order 1, which computes it in f32 on the device).
+pub const COMPENSATOR_SIDE: f64 = 1.0 / 24.0;
+
+/// Averaged rows through the droop compensator: `c_r = (1 + 2a)·y_r − a·(y_{r−1} +
+/// y_{r+1})` for every row with a row either side (the first and last have none and are
+/// dropped: `y.len() − 2` rows, row `j` the compensated `y_{j+1}`), a = [`COMPENSATOR_SIDE`].
+/// What a device whose ADC oversampler averages the conversions delivers, in f64.
+pub fn compensate_rows(y: &[f64]) -> Vec<f64> {
+    let a = COMPENSATOR_SIDE;
+    y.windows(3)
+        .map(|w| (1.0 + 2.0 * a) * w[1] - a * (w[0] + w[2]))
+        .collect()
+}
+
+/// One channel at `k` times fewer rows: averaged ([`average_rows`]), then compensated
+/// ([`compensate_rows`]).
+pub fn decimate_column(values: &[f64], k: usize) -> Vec<f64> {
+    compensate_rows(&average_rows(values, k))
+}
+
+/// The times of [`decimate_column`]'s rows: each compensated row's own averaged time (the
+/// first and last averaged rows dropped).
+pub fn decimate_times(t: &[f64], k: usize) -> Vec<f64> {
+    let mut t = average_rows(t, k);
+    if t.len() < 3 {
+        return Vec::new();
+    }
+    t.pop();
+    t.remove(0);
+    t
+}
+
+/// The recording at `k` times fewer rows, as a device decimates it: every channel averaged
+/// `k` rows at a time and compensated for the average's droop ([`decimate_column`]), the
+/// times those of the compensated rows ([`decimate_times`]).
 pub fn decimate_recording(recording: &Recording, k: usize) -> Recording {
     if k <= 1 {
         return recording.clone();
     }
     Recording {
         path: recording.path.clone(),
-        t: average_rows(&recording.t, k),
-        x: average_rows(&recording.x, k),
-        v: recording.v.as_ref().map(|v| average_rows(v, k)),
-        u: recording.u.as_ref().map(|u| average_rows(u, k)),
+        t: decimate_times(&recording.t, k),
+        x: decimate_column(&recording.x, k),
+        v: recording.v.as_ref().map(|v| decimate_column(v, k)),
+        u: recording.u.as_ref().map(|u| decimate_column(u, k)),
         columns: recording.columns.clone(),
     }
 }
@@ -354,7 +389,7 @@ pub fn decimate_system(data: &SystemData, k: usize) -> SystemData {
     if k > 1 {
         out.recording = decimate_recording(&data.recording, k);
         for e in &mut out.electrical {
-            e.values = average_rows(&e.values, k);
+            e.values = decimate_column(&e.values, k);
         }
     }
     out

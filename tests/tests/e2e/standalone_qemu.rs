@@ -538,9 +538,14 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
             _ => None,
         })
         .collect();
-    // Each window adds its rows (4 s at 200 Hz, less the CIC's two warm-up blocks) to the
-    // kept model; the last report is after the third window (the recording ends asleep).
-    let per_window = 800 - u64::from(ORDER - 1);
+    // Each window adds its rows (4 s at 200 Hz, less the warm-up's blocks but one: the
+    // CIC's two and its compensator's two) to the kept model; the last report is after the
+    // third window (the recording ends asleep).
+    let warm_up = Decimator::new(factor, ORDER)
+        .expect("a decimator")
+        .warm_up();
+    assert_eq!(warm_up, u32::from(ORDER) + 2);
+    let per_window = 800 - u64::from(warm_up - 1);
     assert_eq!(
         samples,
         [per_window, 2 * per_window, 3 * per_window, 3 * per_window]
