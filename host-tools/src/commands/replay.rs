@@ -107,7 +107,8 @@ pub struct ReplayArgs {
     pub deadline: f64,
     /// Rows a second sent in the configuration: the recording's rows are averaged down to it
     /// (the recording's rate divided by a whole number; a first-order CIC, as a device's
-    /// ADC oversampler), and the model is that of the averaged recording [default: the
+    /// ADC oversampler, then the device's 3-tap droop compensator, which drops the first and
+    /// last rows), and the model is that of the averaged recording [default: the
     /// recording's own rate, so that the model is `lssi identify --f32`'s]. To replay at the
     /// rate `lssi identify FILE` proposes ("a device needs N Hz for this harvester"), give
     /// the recording's rate divided by the largest whole number that keeps it at or above N

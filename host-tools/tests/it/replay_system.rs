@@ -144,22 +144,41 @@ fn a_replayed_system_is_identify_f32_bit_for_bit() {
     }
 }
 
-/// Every column averaged `k` rows at a time, written as the shortest decimal that reads back
-/// the same f64: what `lssi replay --row-rate` sends.
+/// Every column averaged `k` rows at a time, then through the droop compensator
+/// `(1 + 2a)·y_r − a·(y_{r−1} + y_{r+1})`, a = 1/24 (t: the middle row's mean; the first and
+/// last rows dropped), written as the shortest decimal that reads back the same f64: what
+/// `lssi replay --row-rate` sends.
 fn average_csv(from: &Path, to: &Path, k: usize) {
     let text = std::fs::read_to_string(from).unwrap();
     let mut lines = text.lines();
     let header = lines.next().unwrap();
+    let t_column = header.split(',').position(|h| h.trim() == "t").unwrap();
     let rows: Vec<Vec<f64>> = lines
         .filter(|l| !l.trim().is_empty())
         .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
         .collect();
+    let means: Vec<Vec<f64>> = rows
+        .chunks_exact(k)
+        .map(|group| {
+            (0..group[0].len())
+                .map(|j| group.iter().map(|r| r[j]).sum::<f64>() / k as f64)
+                .collect()
+        })
+        .collect();
+    let a = 1.0 / 24.0;
     let mut out = format!("{header}\n");
-    for group in rows.chunks_exact(k) {
-        let means: Vec<String> = (0..group[0].len())
-            .map(|j| format!("{}", group.iter().map(|r| r[j]).sum::<f64>() / k as f64))
+    for w in means.windows(3) {
+        let row: Vec<String> = (0..w[1].len())
+            .map(|j| {
+                let value = if j == t_column {
+                    w[1][j]
+                } else {
+                    (1.0 + 2.0 * a) * w[1][j] - a * (w[0][j] + w[2][j])
+                };
+                format!("{value}")
+            })
             .collect();
-        out.push_str(&means.join(","));
+        out.push_str(&row.join(","));
         out.push('\n');
     }
     std::fs::write(to, out).unwrap();

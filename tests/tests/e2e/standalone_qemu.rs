@@ -135,8 +135,8 @@ fn standalone_device_keeps_up_at_10_khz_and_ends_with_the_model_of_identify_f32(
 ///
 /// No conversion may be lost (0 overruns), the final model must be, coefficient for
 /// coefficient, lssi-core's `f32` identifier run on the same rows (decimated here by the
-/// same `lssi_device::decimate::Decimator`), and it must hold every true term, each within
-/// 1 % of the truth.
+/// same `lssi_device::decimate::Decimator`, its droop compensator included), and it must
+/// hold every true term, each within 1 % of the truth, and no other.
 #[test]
 #[ignore = "needs qemu-system-arm and the standalone firmware ELF: bash scripts/ci-qemu.sh runs it"]
 fn standalone_device_decimates_10_khz_to_the_proposed_rate_and_ends_with_the_identifiers_model() {
@@ -311,6 +311,13 @@ fn standalone_device_decimates_10_khz_to_the_proposed_rate_and_ends_with_the_ide
         );
         assert!(error <= 0.01, "{name}: {got} against the true {want}");
     }
+    // And nothing else: the model's terms are exactly the truth's (the CIC's passband droop,
+    // uncompensated, made the identifier add a spurious x·v² ≈ −13,500 here).
+    assert_eq!(
+        active.len(),
+        4,
+        "the device's model has terms the truth has not: {active:?}"
+    );
 }
 
 /// Runs the standalone image on `recording` converted at `adc_hz`, its stored
@@ -531,9 +538,14 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
             _ => None,
         })
         .collect();
-    // Each window adds its rows (4 s at 200 Hz, less the CIC's two warm-up blocks) to the
-    // kept model; the last report is after the third window (the recording ends asleep).
-    let per_window = 800 - u64::from(ORDER - 1);
+    // Each window adds its rows (4 s at 200 Hz, less the warm-up's blocks but one: the
+    // CIC's two and its compensator's two) to the kept model; the last report is after the
+    // third window (the recording ends asleep).
+    let warm_up = Decimator::new(factor, ORDER)
+        .expect("a decimator")
+        .warm_up();
+    assert_eq!(warm_up, u32::from(ORDER) + 2);
+    let per_window = 800 - u64::from(warm_up - 1);
     assert_eq!(
         samples,
         [per_window, 2 * per_window, 3 * per_window, 3 * per_window]

@@ -225,9 +225,10 @@ impl<'q> Sampler<'q> {
         let u = unpack(reading.u);
         let e = unpack(reading.e);
         let reading = Reading { x: row[0], v, u, e };
-        // Row r is the block that ends with conversion (r + order) · factor − 1.
-        let order = u64::from(self.decimator.order());
-        let index = (c + 1) / factor - order;
+        // Row r ends with conversion (r + warm_up) · factor − 1 (the CIC's order, and the
+        // compensator's two rows when decimating).
+        let warm_up = u64::from(self.decimator.warm_up());
+        let index = (c + 1) / factor - warm_up;
         self.next += 1;
         let event = Event::Sample {
             index,

@@ -105,6 +105,9 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     pub(super) pending: Mutex<Cell<Option<Pending<S>>>>,
     /// A decimator for the sampling interrupt to put in before its next conversion.
     pub(super) decimator: Mutex<Cell<Option<Decimator>>>,
+    /// Whether `decimator` holds one: the sampling interrupt checks this flag, not the
+    /// cell (taking the cell copies a whole decimator in and out on every conversion).
+    decimator_waiting: AtomicBool,
     /// A duty cycle for the sampling interrupt to follow from its next conversion.
     pub(super) schedule: Mutex<Cell<Option<Schedule>>>,
     /// Sampling in windows: the identify task leaves the scheduled screenings out (the
@@ -165,6 +168,7 @@ impl<const P: usize, S: Screening> Shared<P, S> {
             full: Mutex::new(Cell::new(None)),
             pending: Mutex::new(Cell::new(None)),
             decimator: Mutex::new(Cell::new(None)),
+            decimator_waiting: AtomicBool::new(false),
             schedule: Mutex::new(Cell::new(None)),
             windowed: AtomicBool::new(false),
             model_stride: AtomicU32::new(1),
@@ -199,7 +203,10 @@ impl<const P: usize, S: Screening> Shared<P, S> {
 
     /// Asks the sampling interrupt to decimate by `decimator` from its next conversion.
     pub fn request_decimator(&self, decimator: Decimator) {
-        critical_section::with(|cs| self.decimator.borrow(cs).set(Some(decimator)));
+        critical_section::with(|cs| {
+            self.decimator.borrow(cs).set(Some(decimator));
+            self.decimator_waiting.store(true, Ordering::Relaxed);
+        });
     }
 
     /// Asks the sampling interrupt to follow `schedule` from its next conversion (and the
@@ -226,7 +233,13 @@ impl<const P: usize, S: Screening> Shared<P, S> {
     }
 
     pub(super) fn take_decimator(&self) -> Option<Decimator> {
-        critical_section::with(|cs| self.decimator.borrow(cs).take())
+        if !self.decimator_waiting.load(Ordering::Relaxed) {
+            return None;
+        }
+        critical_section::with(|cs| {
+            self.decimator_waiting.store(false, Ordering::Relaxed);
+            self.decimator.borrow(cs).take()
+        })
     }
 
     /// Whether a snapshot waits for its screening (thread mode has work: do not sleep).

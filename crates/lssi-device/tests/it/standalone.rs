@@ -281,9 +281,9 @@ fn an_accepted_configuration_is_handed_over_once_to_keep() {
     assert_eq!(reporter.take_accepted(), None);
 }
 
-/// A decimating sampler: one row every D conversions (after the CIC's warm-up), the row
-/// the decimator's own, queued with consecutive indices; the identify task wakes for rows
-/// only (`tick` says when).
+/// A decimating sampler: one row every D conversions (after the CIC's and its
+/// compensator's warm-up), the row the decimator's own, queued with consecutive indices;
+/// the identify task wakes for rows only (`tick` says when).
 #[test]
 fn a_decimating_sampler_queues_one_row_every_factor_conversions() {
     use lssi_device::decimate::Decimator;
@@ -319,10 +319,12 @@ fn a_decimating_sampler_queues_one_row_every_factor_conversions() {
             assert_eq!(reading.x, rows[index as usize], "row {index}");
         }
     }
-    // 60 blocks of 5, the first two fill the order-3 kernel.
-    assert_eq!(rows.len(), 58);
-    assert_eq!(woken, 58);
-    assert_eq!(sampler.taken(), 58);
+    // 60 blocks of 5, the first two fill the order-3 kernel and two more the compensator
+    // (it needs the CIC rows either side of the one it compensates).
+    assert_eq!(reference.warm_up(), 5);
+    assert_eq!(rows.len(), 56);
+    assert_eq!(woken, 56);
+    assert_eq!(sampler.taken(), 56);
     assert_eq!(sampler.conversions(), 300);
 }
 
