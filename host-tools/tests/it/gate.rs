@@ -313,3 +313,56 @@ fn a_printed_term_its_standard_error_does_not_resolve_is_withheld() {
     );
     assert_withheld(&path, "is not resolved by the record: its ± covers 0");
 }
+
+/// A weak damping the streaming selection took as v³ (a steady oscillation's v³ is ¾ A² v: the
+/// held-out half cannot tell them apart) is printed as v, the support of lower degree reached by
+/// backward elimination from the model with v added (issue 25: scripts/hostile-eveh.sh seed
+/// 9239, a single well at F = 2.53, 979 Hz, 26.6 s, 3 % noise, printed `- 97.801 v^3`).
+#[test]
+fn a_damping_the_record_cannot_tell_from_v_cubed_is_printed_as_v() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "weak.csv",
+        &[
+            "eveh",
+            "--wells",
+            "monostable",
+            "--amplitude",
+            "2.53",
+            "--rate",
+            "979",
+            "--t-end",
+            "26.6",
+            "--delta",
+            "0.03",
+            "--seed",
+            "9239",
+        ],
+    );
+    let out = Command::new(LSSI)
+        .arg("identify")
+        .arg(&path)
+        .arg("--json")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let terms: Vec<(String, f64)> = json["terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["term"].as_str().unwrap().to_owned(),
+                t["coef"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    let names: Vec<&str> = terms.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names[..3], ["x", "v", "x^3"], "{terms:?}");
+    assert_eq!(names.len(), 4, "{terms:?}");
+    let v = terms[1].1;
+    assert!((v / -0.4036 - 1.0).abs() < 0.25, "damping {v}");
+}

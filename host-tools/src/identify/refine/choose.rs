@@ -442,6 +442,11 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 return false;
             };
             let sparser = trials[i].support.len() < streaming_terms.len();
+            // As many terms as the streaming support but of a lower total degree (v in place of
+            // v³ for a weak damping the record cannot tell apart: a steady oscillation's v³ is
+            // ¾ A² v), reached by backward elimination from the root with v added.
+            let simpler = trials[i].support.len() == streaming_terms.len()
+                && degree(&trials[i].support) < degree(streaming_terms);
             let resolved = i == 0 && disagreement.is_some_and(|d| d >= SIGNIFICANT_SE);
             // A term added must also earn its place against the same support without it,
             // refined the same way (the streaming support refined).
@@ -453,8 +458,8 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 !adds
                     // A sparser support reached by backward elimination, every term it adds
                     // significant, that predicts no worse: the data resolves the terms it
-                    // adds better than the ones it drops (v for x·v + v³).
-                    || (pruned && sparser)
+                    // adds better than the ones it drops (v for x·v + v³, or for v³).
+                    || (pruned && (sparser || simpler))
                     || match (&trials[0].windows, &trials[i].windows) {
                         (Some(w0), Some(wi)) => {
                             Paired::of(w0, wi).is_some_and(|q| q.z >= Z_BETTER)
