@@ -94,8 +94,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
     // The model printed (refined or not) must be able to do what the record does: one
     // without damping cannot die out (refinement can bring a damping the streaming selection
     // lost back, so this is judged after it).
-    if let Some(why) = quality::undamped_decay(recording, &report)
-        .or_else(|| quality::unresolved_term(&report))
+    if let Some(why) =
+        quality::undamped_decay(recording, &report).or_else(|| quality::unresolved_term(&report))
     {
         let sentence = format!(
             "no deterministic dynamics found in {}: {why}.",

@@ -483,8 +483,7 @@ mod states;
 mod term;
 pub use states::{
     Electrical, MAX_COUPLING_ORDER, MAX_DISPLACEMENTS, MAX_ELECTRICAL, STATES, StateLibrary,
-    StateLibraryConfig,
-    StateLibraryError, StateTerm, StateTermName,
+    StateLibraryConfig, StateLibraryError, StateTerm, StateTermName,
 };
 pub use term::{Term, TermName};
 
