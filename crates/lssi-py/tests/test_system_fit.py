@@ -295,8 +295,10 @@ def test_electrical_channels_a_model_lacks_are_named(fitted, piezo):
     _, col = piezo
     n = 500
     x, t, u, V = col["x"][:n], col["t"][:n], col["u"][:n], col["V"][:n]
-    # A single-equation model (fitted without V) given V.
-    single = lssi.Model().fit(col["x"], t=col["t"], u=col["u"])
+    # A single-equation model (fitted without V) given V. The streaming model: x'' alone cannot
+    # describe a harvester whose V acts back on x, and refined it leaves a term its standard
+    # error does not resolve (withheld); the channel errors below are what this test is about.
+    single = lssi.Model(refine=False).fit(col["x"], t=col["t"], u=col["u"])
     assert not single.is_system()
     with pytest.raises(ValueError, match="V: this model was fitted without an electrical channel"):
         single.score(x, t, u=u, V=V)
