@@ -301,7 +301,7 @@ impl<const P: usize> StateLibrary<P> {
                 },
                 electrical: [None; MAX_ELECTRICAL],
                 coupling_order: 0,
-                displacements: 1,
+                displacements: 0,
             },
             max_power: 0,
         }
