@@ -252,13 +252,18 @@ struct Fit {
 
 fn cost_of(p: &Problem, c: &[f64], segs: &[(usize, usize)], starts: &[State]) -> Option<f64> {
     let sim = p.sim(c);
-    segs.par_iter()
+    // The segments in parallel, their sums added in order: rayon's own sum splits the work as
+    // threads steal it, and a float sum in another order is another cost (the refined model
+    // must be the same on every run, the Python package's and the command's).
+    let parts: Vec<Option<f64>> = segs
+        .par_iter()
         .zip(starts)
         .map(|(&seg, s)| {
             p.residuals(&sim, seg, s)
                 .map(|r| r.iter().map(|e| e * e).sum::<f64>())
         })
-        .sum::<Option<f64>>()
+        .collect();
+    parts.into_iter().sum::<Option<f64>>()
 }
 
 /// Damped `m` (its diagonal times 1 + μ).
