@@ -411,6 +411,7 @@ pub fn fit_system(
     options: &Options,
     coupling_order: u8,
     load_ohms: Option<f64>,
+    refine: bool,
 ) -> Result<SystemFitted, String> {
     use lssi_host::system;
     if let Some(r) = load_ohms
@@ -422,7 +423,8 @@ pub fn fit_system(
     }
     let (config, _) =
         system::configure(data, options, coupling_order).map_err(|e| e.to_string())?;
-    // The command's one path: the streaming identifier, refinement, the system's gate and,
+    // The command's one path: the streaming identifier, refinement (unless `refine` is false:
+    // `--no-refine`), the system's gate and,
     // for a model that passes, the harvester in physical terms. A withheld model is an error
     // with the sentence `lssi identify` prints.
     let args = system::SystemArgs {
@@ -432,7 +434,7 @@ pub fn fit_system(
         coupling_order,
     };
     let report =
-        match system::identify_system(data, options, &args, false).map_err(|e| e.to_string())? {
+        match system::identify_system(data, options, &args, !refine).map_err(|e| e.to_string())? {
             system::Outcome::Passed(report) => *report,
             system::Outcome::Withheld(sentence, _) => return Err(sentence),
         };

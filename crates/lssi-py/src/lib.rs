@@ -421,7 +421,7 @@ impl SystemFit {
 /// `lssi identify FILE` when the file is a system's recording (it has an electrical column,
 /// `V` or `i`): its model; `None` for a single-equation recording.
 #[pyfunction]
-#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None))]
+#[pyo3(signature = (path, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None, refine=true))]
 #[allow(clippy::too_many_arguments)]
 fn identify_system(
     py: Python<'_>,
@@ -435,13 +435,14 @@ fn identify_system(
     memory: Option<f64>,
     coupling_order: u8,
     load_ohms: Option<f64>,
+    refine: bool,
 ) -> PyResult<Option<SystemFit>> {
     let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
     let fitted = py.detach(|| {
         guarded("identifying the system", || {
             match host::read_system(path)? {
                 Some(data) => {
-                    host::fit_system(&data, &options, coupling_order, load_ohms).map(Some)
+                    host::fit_system(&data, &options, coupling_order, load_ohms, refine).map(Some)
                 }
                 None => Ok(None),
             }
@@ -475,7 +476,7 @@ fn system_columns(
 /// `lssi identify` on a system's arrays, as on a file with columns t, x (or v alone:
 /// integrated), v, u, V, i holding them; `name` standing for the file in its sentences.
 #[pyfunction]
-#[pyo3(signature = (t, x, v, u, voltage, current, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None, name="array"))]
+#[pyo3(signature = (t, x, v, u, voltage, current, omega, harmonics, poly_order, family, f32, smoothing, memory, coupling_order=1, load_ohms=None, refine=true, name="array"))]
 #[allow(clippy::too_many_arguments)]
 fn fit_system(
     py: Python<'_>,
@@ -494,6 +495,7 @@ fn fit_system(
     memory: Option<f64>,
     coupling_order: u8,
     load_ohms: Option<f64>,
+    refine: bool,
     name: &str,
 ) -> PyResult<SystemFit> {
     let options = options(omega, harmonics, poly_order, family, f32, smoothing, memory)?;
@@ -501,7 +503,7 @@ fn fit_system(
     let fitted = py.detach(|| {
         guarded("identifying the system", || {
             let data = host::system_data(columns)?;
-            host::fit_system(&data, &options, coupling_order, load_ohms)
+            host::fit_system(&data, &options, coupling_order, load_ohms, refine)
         })
     })?;
     Ok(SystemFit { fitted })

@@ -47,21 +47,23 @@ def fitted(piezo):
 
 
 # -- the same system as from the file -------------------------------------------------------
-# Every recording in f64; f32 on three of them (CI's time: each case identifies four times).
+# Every recording in f64; f32 on three of them (CI's time: each case identifies three times;
+# the bistable records are 8-10 s, each as the command decides it at 20 s: the electromagnetic
+# one withheld, the piezo one identified; its refinement took 45 s a run at 20 s).
 @pytest.mark.parametrize(
     "kind, wells, observe, extra, f32",
     [
         ("piezo", "monostable", "x", [], False),
         ("piezo", "monostable", "x", [], True),
-        ("piezo", "bistable", "x", ["--delta", "0.01"], False),
-        ("piezo", "bistable", "x", ["--delta", "0.01"], True),
+        ("piezo", "bistable", "x", ["--delta", "0.01", "--t-end", "10"], False),
+        ("piezo", "bistable", "x", ["--delta", "0.01", "--t-end", "10"], True),
         ("piezo", "monostable", "v", [], False),
         ("piezo", "bistable", "xv", ["--delta", "0.05", "--seed", "3"], False),
         ("electromagnetic", "monostable", "x", ["--coil", "inductive"], False),
         ("electromagnetic", "monostable", "x", ["--coil", "negligible", "--delta", "0.01"], False),
         ("electromagnetic", "monostable", "x", ["--electrical", "i"], False),
-        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5"], False),
-        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5"], True),
+        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5", "--t-end", "8"], False),
+        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5", "--t-end", "8"], True),
     ],
 )
 def test_fit_on_arrays_equals_identify_on_the_file(cli, tmp_path, kind, wells, observe, extra, f32):
@@ -95,8 +97,9 @@ def test_fit_on_arrays_equals_identify_on_the_file(cli, tmp_path, kind, wells, o
     # Written back from the arrays: the command reads the same numbers.
     expected = command.stdout.strip()
     assert m.to_json() == expected
-    # A DataFrame with the same columns gives the same system.
-    assert lssi.Model(f32=f32).fit(pd.DataFrame(col)).to_json() == expected
+    # A DataFrame with the same columns gives the same system (once: a fourth identification).
+    if kind == "piezo" and wells == "monostable" and observe == "x" and not f32:
+        assert lssi.Model(f32=f32).fit(pd.DataFrame(col)).to_json() == expected
     if "i" in col:
         assert list(m.equations()) == ["x''", "i'"]
         assert m.states()[2:] == ["i"]
@@ -107,7 +110,7 @@ def test_both_electrical_channels_as_the_command(cli, tmp_path):
     i are one signal (V = R_L i), so the command's gate withholds the three equations as
     collinear, and the package raises with the command's sentence."""
     path = tmp_path / "em.csv"
-    cli("gen", "electromagnetic", "--input", "--wells", "bistable", "--delta", "0.01", "--seed", "31", path)
+    cli("gen", "electromagnetic", "--input", "--wells", "bistable", "--delta", "0.01", "--seed", "31", "--t-end", "8", path)
     col = columns(path)
     rng = np.random.default_rng(11)
     col["i"] = col["V"] / 1000.0 * (1.0 + 0.01 * rng.standard_normal(col["V"].shape))
@@ -126,15 +129,16 @@ def test_load_ohms_and_coupling_order_as_the_command(cli, piezo, tmp_path):
     path, col = piezo
     truth = json.loads(path.with_suffix(".json").read_text())
     ohms = truth.get("load_ohms") or 1.0e5
-    m = lssi.Model(coupling_order=2).fit(col["x"], t=col["t"], u=col["u"], V=col["V"], load_ohms=ohms)
-    expected = cli("identify", path, "--json", "--f64", "--load-ohms", ohms, "--coupling-order", 2)
+    # The streaming model (refinement is the same with or without a load: CI's time).
+    m = lssi.Model(coupling_order=2, refine=False).fit(col["x"], t=col["t"], u=col["u"], V=col["V"], load_ohms=ohms)
+    expected = cli("identify", path, "--json", "--f64", "--no-refine", "--load-ohms", ohms, "--coupling-order", 2)
     assert m.to_json() == expected.strip()
     h = m.harvester()
     assert h["load_ohms"] == ohms
     assert 0.0 < h["coupling_k2"] < 1.0
     assert h["power_measured_w"] > 0.0
-    assert lssi.identify(path, load_ohms=ohms, coupling_order=2).to_json() == m.to_json()
-    assert lssi.Model().fit(col["x"], t=col["t"], u=col["u"], V=col["V"]).harvester() is None
+    assert lssi.identify(path, load_ohms=ohms, coupling_order=2, refine=False).to_json() == m.to_json()
+    assert lssi.Model(refine=False).fit(col["x"], t=col["t"], u=col["u"], V=col["V"]).harvester() is None
 
 
 # -- what a fitted system gives -------------------------------------------------------------
@@ -161,7 +165,11 @@ def test_equations_coefficients_and_print(fitted, piezo, capsys):
         assert list(dense) == names
         for name, coef in dense.items():
             assert coef == equations[target].get(name, 0.0)
-    assert m.streaming_coefficients() == coefficients
+    if m.report()["model"] == "refined":
+        with pytest.raises(ValueError, match="a refined system keeps no streaming model"):
+            m.streaming_coefficients()
+    else:
+        assert m.streaming_coefficients() == coefficients
     se = m.standard_errors()
     assert list(se) == ["x''", "V'"]
     for target in se:

@@ -432,6 +432,7 @@ class Model:
         self._fit = _lssi.fit_system(
             t, columns["x"], columns["v"], columns["u"], columns["V"], columns["i"],
             *self._options(), coupling_order=self.coupling_order, load_ohms=load,
+            refine=self.refine,
         )
         self._data = None
         self._system_path = None
@@ -516,17 +517,23 @@ class Model:
         reported model: the refined one when it was taken (``report()["model"]`` says).
 
         For a system, a dict per equation: ``{"x''": {term: coef, …}, "V'": {…}}``, every
-        term of the shared library in each (systems are not refined yet: the streaming
-        system identifier's model)."""
+        term of the shared library in each (of the reported system: refined unless
+        ``refine=False``)."""
         if self._is_system():
             return {target: self._dense(terms) for target, terms in self._fitted().equations()}
         return self._dense(self._single("coefficients").terms())
 
     def streaming_coefficients(self):
         """As ``coefficients()``, of the streaming identifier's model (what a device computes
-        for the same samples; the JSON's ``streaming_terms``). A system's model is the
-        streaming one: ``coefficients()``."""
+        for the same samples; the JSON's ``streaming_terms``). For a system, its
+        ``coefficients()`` when the reported system is the streaming one (``refine=False``, or
+        refinement not taken); a refined system keeps no streaming model: ValueError."""
         if self._is_system():
+            if self.report().get("model") == "refined":
+                raise ValueError(
+                    "streaming_coefficients(): this system was refined, and a refined system "
+                    "keeps no streaming model: fit with refine=False for the device's model."
+                )
             return self.coefficients()
         return self._dense(self._single("streaming_coefficients").streaming_terms())
 
@@ -942,13 +949,14 @@ def identify(path, load_ohms=None, **options) -> Model:
     current) is a harvester's system, as for the command: the Model holds its equations
     (``equations()``: ``{"x''": {...}, "V'": {...}}``, ``states()``: ``["x", "v", "V"]``),
     ``to_json()`` is the command's ``--json`` object, and ``simulate`` takes and returns
-    mappings of state names (systems are not refined yet: ``refine`` does not apply).
+    mappings of state names; a system is refined on simulation error as the command refines
+    it (``refine=False``: the streaming system identifier's, ``--no-refine``).
     ``load_ohms`` (the command's ``--load-ohms``) adds the harvester in physical terms
     (``Model.harvester()``); ``coupling_order`` is its ``--coupling-order``."""
     m = Model(**options)
     load = _positive("load_ohms", load_ohms, "a positive resistance in ohms (or None)")
     system = _lssi.identify_system(str(path), *m._options(), coupling_order=m.coupling_order,
-                                   load_ohms=load)
+                                   load_ohms=load, refine=m.refine)
     if system is not None:
         m._fit = system
         m._system_path = str(path)
