@@ -3,6 +3,7 @@
 use super::{Clock, FromHost, Schedule, Screening, Shared};
 use crate::Transport;
 use crate::decimate::{Decimator, factor_for};
+use core::num::NonZeroU16;
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
 use lssi_core::Snapshot;
@@ -107,9 +108,11 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
     finished: bool,
     /// A host's configuration, accepted and not yet taken by the board to keep.
     to_keep: Option<WireConfig>,
-    /// The duty cycle (windows and intervals, seconds; a model every how many windows), if
-    /// any: reports only at the end of a window, then.
-    duty: Option<WireDuty>,
+    /// With a duty cycle (reports only at the end of a window, then), a model every how
+    /// many windows; `None` without one. (Its window and interval are the sampling
+    /// interrupt's schedule's: not kept here, where they would take room in a board's main
+    /// frame for good.)
+    duty: Option<NonZeroU16>,
     /// The model of the last window that made one, and how it moved from the one before.
     previous: Option<(
         heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
@@ -157,7 +160,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     /// configuration's rate. Reports go out at the end of each window only: Model then
     /// Health every `model_every`-th window, Health alone at the others (no screening).
     pub fn set_duty(&mut self, duty: Option<WireDuty>, shared: &Shared<P, S>) {
-        self.duty = duty;
+        self.duty = duty.map(|d| NonZeroU16::new(d.model_every).unwrap_or(NonZeroU16::MIN));
         let schedule = match (duty, self.config) {
             (Some(d), Some(config)) => {
                 let config = S::base(&config);
@@ -355,7 +358,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     /// Whether the duty cycle's window ending now makes a model (every `model_every`-th
     /// window; 0 or 1: every one).
     fn models_this_window(&self) -> bool {
-        let every = self.duty.map_or(1, |d| u32::from(d.model_every.max(1)));
+        let every = self.duty.map_or(1, |every| u32::from(every.get()));
         (self.windows.saturating_add(1)).is_multiple_of(every)
     }
 
