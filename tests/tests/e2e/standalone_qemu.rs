@@ -528,6 +528,11 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
         longest < 100_000,
         "a wake-up of {longest} ticks: the screening is not spread over rows"
     );
+    // One screening while sampling, window 2's: windows 1 and 3 ran none.
+    assert!(
+        log.contains("screenings run while sampling: 1 "),
+        "the windows' screenings:\n{log}"
+    );
     // A Health alone at the end of windows 1 and 3, a Model then a Health at window 2,
     // then the final pair.
     let kinds: Vec<&str> = messages
