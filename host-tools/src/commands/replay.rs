@@ -600,3 +600,34 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     let _ = std::fs::remove_dir_all(&dir);
     result
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{default_model_every, duty_from_flags};
+
+    #[test]
+    fn a_duty_cycle_makes_a_model_about_every_40_minutes_by_default() {
+        // 10 s every 10 minutes: every 4th window; 10 s windows every 600 s asleep (610 s):
+        // every 3rd (a model at least every 40 minutes).
+        assert_eq!(default_model_every(10.0, 590.0), 4);
+        assert_eq!(default_model_every(10.0, 600.0), 3);
+        // Windows 40 minutes or more apart: every one; short ones: many (capped).
+        assert_eq!(default_model_every(60.0, 3600.0), 1);
+        assert_eq!(default_model_every(0.01, 0.01), u16::MAX);
+        let duty = duty_from_flags(Some(10.0), Some(590.0), None)
+            .unwrap()
+            .unwrap();
+        assert_eq!(duty.model_every, 4);
+        let duty = duty_from_flags(Some(10.0), Some(590.0), Some(1))
+            .unwrap()
+            .unwrap();
+        assert_eq!(duty.model_every, 1);
+        for bad in [0, -1, 65_536] {
+            assert!(
+                duty_from_flags(Some(10.0), Some(590.0), Some(bad)).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(duty_from_flags(None, None, Some(2)).is_err());
+    }
+}
