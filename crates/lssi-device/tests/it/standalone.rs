@@ -555,6 +555,27 @@ fn a_model_every_third_window_is_the_every_window_model_and_the_others_send_heal
     for (k, model) in made.iter().enumerate() {
         assert_eq!(model, &all[3 * k + 2], "window {}", 3 * k + 3);
     }
+    // So with every 2nd and 4th window, and on the unchanged harvester and a softer one
+    // (k 3.2) with other windows (8 s every 25 s).
+    let steady = duffing(27_000, |_| 4.0);
+    let soft = duffing(27_000, |_| 3.2);
+    for (name, x, window, interval) in [
+        ("changed", &x, 10.0, 20.0),
+        ("steady", &steady, 10.0, 20.0),
+        ("soft", &soft, 8.0, 17.0),
+    ] {
+        let (_, all_frames) = windows(27_000, window, interval, |i| x[i as usize]);
+        let all = models(&all_frames);
+        for n in [2u16, 4] {
+            let (_, frames) = windows_every(27_000, window, interval, n, |i| x[i as usize]);
+            let made = models(&frames);
+            let n = usize::from(n);
+            assert_eq!(made.len(), all.len() / n, "{name}, every {n}");
+            for (k, model) in made.iter().enumerate() {
+                assert_eq!(model, &all[n * k + n - 1], "{name}, every {n}, model {k}");
+            }
+        }
+    }
     // The drift at windows 3, 6 and 9, each from the model before.
     assert_eq!(every.len(), 9);
     let windows: Vec<u32> = third.iter().map(|(_, d)| d.windows).collect();
