@@ -276,7 +276,8 @@ if [[ -z $conv_cost || -z $dec_cost ]]; then
 fi
 CONV_COST=$conv_cost DEC_COST=$dec_cost bash "$root/scripts/firmware-power.sh"
 echo "The identifier's own instructions dominate on the L432 (its rows, then a screening every 5"
-echo "minutes); duty-cycled, the window's screening and Stop 2 between windows. Constants marked CHECK"
+echo "minutes); duty-cycled, Stop 2 between windows and the window's rows (a model, one screening,"
+echo "every few windows: lssi monitor/replay --duty-model-every). Constants marked CHECK"
 echo "in scripts/firmware-power.sh are read from memory of the datasheets' tables; none was checked"
 echo "against a current revision here."
 

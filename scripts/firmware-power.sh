@@ -10,6 +10,8 @@
 #   CONV_COST=N DEC_COST=N ...                     # the F4 decimator's cost (firmware-bench.sh
 #                                                  # passes its bench-profile figures; else
 #                                                  # the bench-profile image is built and run)
+#   DUTY_MODEL_EVERY=N ...                         # a model every N windows (else the host's
+#                                                  # default, as the image logs it)
 #
 # What is measured, under QEMU (-icount shift=4: 2.5 instructions a 25 MHz tick): the
 # standalone image (crates/lssi-firmware/src/bin/lssi-standalone.rs) at its defaults for a
@@ -21,6 +23,17 @@
 # (rows, the sampling and identify interrupts, thread mode, the frames, the screenings run,
 # spread over rows) and logs it at the end; its final Health gives the final screening's
 # cost (after the recording nothing interrupts it: one screening's instructions).
+#
+# Duty-cycled, the device identifies for a 10 s window every 10 minutes and sleeps in Stop 2
+# between; a window's rows cost what the continuous run's rows cost, and a model (one
+# screening) is made every N-th window only (Configure's duty cycle, `lssi monitor/replay
+# --duty-model-every N`), the windows between ending with Health alone. N is the one the
+# host sends: a 3 s recording through the image with `--duty-window 10 --duty-interval 590`
+# (well under a second of QEMU), whose log says "a model every N window(s)" (the host's
+# default: the windows of about 40 minutes, 4 here; `DUTY_MODEL_EVERY=N` gives another).
+# Not counted: a Health-only window's end still copies the identifier into the snapshot
+# (its worst row with that copy is about 32,000 ticks, 80 k instructions: at most 0.04 µW
+# at one a window) and sends one Health frame instead of two frames.
 #
 # Every constant and where it comes from (CHECK: read from memory of the datasheet's tables,
 # not verified against a PDF here; the stored docs hold no ST datasheet, and a search of the
@@ -146,6 +159,20 @@ if [[ -z ${awake_ticks:-} || -z ${final_screen:-} || -z ${stride:-} || -z ${peri
     exit 1
 fi
 config_line=$(grep -m1 "lssi standalone:" "$work/eveh.log" | sed 's/.*lssi standalone: //')
+# The duty cycle as the host configures it: the image's own log of its stored Configure.
+duty_flags=(--duty-window 10 --duty-interval 590)
+if [[ -n ${DUTY_MODEL_EVERY:-} ]]; then duty_flags+=(--duty-model-every "$DUTY_MODEL_EVERY"); fi
+"$lssi" gen eveh "$work/duty.csv" --rate "$ROW_HZ" --t-end 3 --observe x >/dev/null
+"$lssi" monitor --qemu "$work/duty.csv" --json --firmware "$standalone" "${duty_flags[@]}" \
+    --log "$work/duty.tlm" >/dev/null
+"$lssi" log "$work/duty.tlm" --elf "$standalone" >"$work/duty.log" 2>&1 || true
+duty_line=$(grep -m1 "duty cycle:" "$work/duty.log" | sed 's/.*duty cycle: //')
+every=$(sed -n 's/.*a model every \([0-9]*\) window.*/\1/p' <<<"$duty_line")
+if [[ -z $every ]]; then
+    cat "$work/duty.log" >&2
+    echo "firmware-power: the duty-cycled image logged no duty cycle" >&2
+    exit 1
+fi
 # No scheduled screening may have begun in the last tenth of an interval (it would run after
 # the recording, counted with the final one).
 if ! awk -v n="$interrupts" -v st="$stride" -v p="$period" 'BEGIN {
@@ -160,11 +187,12 @@ echo "(the standalone image under QEMU, as lssi identify configures it: $config_
 echo " $seconds s played: $interrupts rows, $overruns overruns, awake $awake_ticks ticks of 25 MHz = $((awake_ticks * 5 / 2)) instructions"
 echo " while sampling, of which $screenings screenings (a model every $stride scheduled screenings of $period rows);"
 echo " a screening $((final_screen * 5 / 2)) instructions, a row's push $((row_push * 5 / 2));"
-echo " the F4's conversion through its CIC-3 decimator $CONV_COST, of which $DEC_COST the filter)"
+echo " the F4's conversion through its CIC-3 decimator $CONV_COST, of which $DEC_COST the filter;"
+echo " duty-cycled as lssi monitor --duty-window 10 --duty-interval 590 configures it: $duty_line)"
 echo
 awk -v awake="$awake_ticks" -v n="$interrupts" -v scr_ticks="$final_screen" -v R="$ROW_HZ" \
     -v nscr="$screenings" -v stride="$stride" -v period="$period" -v conv="$CONV_COST" \
-    -v krun="${K_RUN:-84}" -v fmhz="${F_MHZ:-4}" -v ovsr_default="${OVSR:-4}" '
+    -v krun="${K_RUN:-84}" -v fmhz="${F_MHZ:-4}" -v ovsr_default="${OVSR:-4}" -v every="$every" '
 function out(label, cont, duty) {
     printf "| %-66s | %10.0f | %10.1f |\n", label, cont, duty
 }
@@ -197,17 +225,17 @@ BEGIN {
     rows = base + A * (conv + isr)
     fscr = scr * scr_rate
     cont_f = V * (k * (rows + fscr) / 1e6 + sleep * (1 - (rows + fscr) / f) + adcf)
-    win = V * (k * (W * rows + scr) / 1e6 + sleep * W + adcf * W) + V * k * (f / 1e6) * wake
+    win = V * (k * (W * rows + scr / every) / 1e6 + sleep * W + adcf * W) + V * k * (f / 1e6) * wake
     duty_f = win / T + V * stop * (T - W) / T
     # STM32L432
     stop2 = 1.28; wake4 = 4e-6; adcvreg = 20e-6
     f4 = fmhz * 1e6
-    l432(base, scr_rate, ovsr_default, f4, krun, 1); cont_l = L_cont; duty_l = L_duty
+    l432(base, scr_rate, ovsr_default, f4, krun, 1 / every); cont_l = L_cont; duty_l = L_duty
     cyc_l = L_cycles; wait_l = L_wait
     # The run current under which the goals hold (everything else as above).
     adc_l = R * ovsr_default * 200e-6
     kmax_c = ((250 / V) - adc_l - stop2) * 1e6 / cyc_l
-    win_cyc = W * (base + R * wait_l) + scr
+    win_cyc = W * (base + R * wait_l) + scr / every
     kmax_d = ((10 - V * stop2 * (T - W) / T) * T / V - W * adc_l) * 1e6 / win_cyc
     printf "| %-66s | %10s | %10s |\n", "part and path", "µW cont.", "µW duty"
     printf "|%s|%s|%s|\n", "--------------------------------------------------------------------", "------------", "------------"
@@ -223,18 +251,21 @@ BEGIN {
     part("  of which the ADC conversions", V * adc_l)
     part("  of which Stop 2 between rows", V * stop2)
     printf "| %-66s | %10s | %10.1f |\n", "  duty-cycled: the rows of a window", "", V * krun * W * (base + R * wait_l) / 1e6 / T
-    printf "| %-66s | %10s | %10.1f |\n", "  duty-cycled: the screening of a window", "", V * krun * scr / 1e6 / T
+    printf "| %-66s | %10s | %10.1f |\n", sprintf("  duty-cycled: a model'"'"'s screening every %d windows", every), "", V * krun * scr / every / 1e6 / T
     printf "| %-66s | %10s | %10.1f |\n", "  duty-cycled: Stop 2 between windows", "", V * stop2 * (T - W) / T
     # Levers, each from the measured instructions (one thing changed from the row above it).
-    l432(base, scr_rate, 64, 16e6, krun, 1); out("  lever: 16 MHz, a burst of 64", L_cont, L_duty)
-    l432(base, scr_rate, 16, 16e6, krun, 1); out("  lever: 16 MHz, a burst of 16", L_cont, L_duty)
-    l432(base, scr_rate, ovsr_default, 2e6, krun, 1); out(sprintf("  lever: 2 MHz (MSI, Low-power run; same µA/MHz: CHECK), a burst of %d", ovsr_default), L_cont, L_duty)
-    l432(base, scr_rate, 16, f4, krun, 1); out(sprintf("  lever: %g MHz, a burst of 16", fmhz), L_cont, L_duty)
-    l432(base, scr_rate, 1, f4, krun, 1); out(sprintf("  lever: %g MHz, one conversion a row", fmhz), L_cont, L_duty)
-    l432(base, R / 10000, ovsr_default, f4, krun, 1); out(sprintf("  lever: a screening every %.0f s (every scheduled one)", 10000 / R), L_cont, L_duty)
-    l432(base, scr_rate, ovsr_default, f4, krun, 0.25); out("  lever: duty-cycled, a screening every 4th window", L_cont, L_duty)
+    e = 1 / every
+    l432(base, scr_rate, 64, 16e6, krun, e); out("  lever: 16 MHz, a burst of 64", L_cont, L_duty)
+    l432(base, scr_rate, 16, 16e6, krun, e); out("  lever: 16 MHz, a burst of 16", L_cont, L_duty)
+    l432(base, scr_rate, ovsr_default, 2e6, krun, e); out(sprintf("  lever: 2 MHz (MSI, Low-power run; same µA/MHz: CHECK), a burst of %d", ovsr_default), L_cont, L_duty)
+    l432(base, scr_rate, 16, f4, krun, e); out(sprintf("  lever: %g MHz, a burst of 16", fmhz), L_cont, L_duty)
+    l432(base, scr_rate, 1, f4, krun, e); out(sprintf("  lever: %g MHz, one conversion a row", fmhz), L_cont, L_duty)
+    l432(base, R / 10000, ovsr_default, f4, krun, e); out(sprintf("  lever: a screening every %.0f s (every scheduled one)", 10000 / R), L_cont, L_duty)
+    l432(base, scr_rate, ovsr_default, f4, krun, 1); out("  lever: duty-cycled, a model every window (--duty-model-every 1)", L_cont, L_duty)
+    l432(base, scr_rate, ovsr_default, f4, krun, 1 / 2); out("  lever: duty-cycled, a model every 2nd window (20 min)", L_cont, L_duty)
+    l432(base, scr_rate, ovsr_default, f4, krun, 1 / 6); out("  lever: duty-cycled, a model every 6th window (an hour)", L_cont, L_duty)
     printf "\n"
-    printf "average power: eveh at %g rows/s (%.0f a forcing period), as lssi identify configures it, measured under QEMU: STM32F411 %.0f µW continuous, %.1f µW duty-cycled (10 s every 10 min); STM32L432 at %g MHz %.0f µW continuous (goal <= 250: %s), %.1f µW duty-cycled (goal <= 10: %s)\n", R, R / 3.406, cont_f, duty_f, fmhz, cont_l, (cont_l <= 250 ? "met" : "NOT met"), duty_l, (duty_l <= 10 ? "met" : "NOT met")
+    printf "average power: eveh at %g rows/s (%.0f a forcing period), as lssi identify configures it, measured under QEMU: STM32F411 %.0f µW continuous, %.1f µW duty-cycled (10 s every 10 min, a model every %d windows); STM32L432 at %g MHz %.0f µW continuous (goal <= 250: %s), %.1f µW duty-cycled (goal <= 10: %s)\n", R, R / 3.406, cont_f, duty_f, every, fmhz, cont_l, (cont_l <= 250 ? "met" : "NOT met"), duty_l, (duty_l <= 10 ? "met" : "NOT met")
     printf "  the L432 goals hold while its run current at %g MHz is at most %.1f µA/MHz (continuous) and %.1f µA/MHz (duty-cycled); assumed %g (the datasheet title page'"'"'s best, CHECK at %g MHz)\n", fmhz, kmax_c, kmax_d, krun, fmhz
     printf "  per day: STM32F411 %.2f J / %.3f J, STM32L432 %.2f J / %.3f J (continuous / duty-cycled)\n", cont_f * 86400e-6, duty_f * 86400e-6, cont_l * 86400e-6, duty_l * 86400e-6
     printf "  instructions a second of sampling: %.0f (%.0f a row) without screenings, + %.0f for a screening every %.0f s\n", base, base / R, scr * scr_rate, 1 / scr_rate

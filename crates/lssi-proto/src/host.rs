@@ -129,7 +129,8 @@ pub enum PolyFamily {
 /// the identifier, and naks [`NakReason::BadConfig`](crate::NakReason::BadConfig) if it
 /// cannot. Field changes bump [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION); the nested
 /// structs are no framing (postcard writes a struct as its fields in order), so the bytes
-/// are those of the flat record of version 5 followed by `duty` (version 6).
+/// are those of the flat record of version 5 followed by `duty` (version 6; its
+/// `model_every` since version 8).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, MaxSize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct WireConfig {
@@ -183,6 +184,12 @@ pub struct WireDuty {
     pub window: f32,
     /// Seconds asleep between two windows (rounded to whole rows).
     pub interval: f32,
+    /// A model every this many windows (0 or 1: every window). The windows between end
+    /// with Health only: their rows go into the identifier as every window's do, but no
+    /// screening is run (a screening costs about as much energy as a window's rows), so
+    /// the model made every `model_every`-th window, and the drift from the previous one,
+    /// are those of a model every window. Since version 8.
+    pub model_every: u16,
 }
 
 /// The candidate terms: `lssi_core::LibraryConfig`, field for field.

@@ -83,7 +83,7 @@ pub use system::{
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 7;
+pub const PROTOCOL_VERSION: u16 = 8;
 
 /// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
 /// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0

@@ -69,12 +69,18 @@ pub struct MonitorArgs {
     )]
     pub row_rate: Option<f64>,
     /// Configure a duty cycle: seconds of identification a window, after which the device
-    /// reports (Model, then Health with the drift) and sleeps (with --duty-interval).
+    /// reports (Model, then Health with the drift, every --duty-model-every windows; Health
+    /// alone at the others) and sleeps (with --duty-interval).
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub duty_window: Option<f64>,
     /// The duty cycle's seconds asleep between windows (with --duty-window).
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub duty_interval: Option<f64>,
+    /// The duty cycle's windows a model: a model (and the drift) every this many windows,
+    /// the windows between ending with a Health alone (with --duty-window) [default: the
+    /// windows of about 40 minutes, at least 1: 4 for 10 s every 10 minutes].
+    #[arg(long, value_name = "WINDOWS", allow_hyphen_values = true)]
+    pub duty_model_every: Option<i64>,
     /// Which header names hold which quantity (--qemu).
     #[command(flatten)]
     pub columns: ColumnNames,
@@ -101,7 +107,11 @@ pub fn monitor(args: &MonitorArgs, out: &mut dyn Write) -> Result<Option<Value>,
             requirement: "a positive number of seconds".into(),
         });
     }
-    let duty = crate::commands::replay::duty_from_flags(args.duty_window, args.duty_interval)?;
+    let duty = crate::commands::replay::duty_from_flags(
+        args.duty_window,
+        args.duty_interval,
+        args.duty_model_every,
+    )?;
     let row_rate = crate::commands::replay::row_rate_from_flag(args.row_rate)?;
     if let Some(r) = row_rate
         && r > 1.0e6

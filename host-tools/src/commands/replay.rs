@@ -126,6 +126,11 @@ pub struct ReplayArgs {
     /// (with --duty-window).
     #[arg(long, value_name = "SECONDS", value_parser = number, allow_hyphen_values = true)]
     pub duty_interval: Option<f64>,
+    /// The duty cycle's windows a model: a model (and the drift) every this many windows,
+    /// the windows between ending with a Health alone (with --duty-window) [default: the
+    /// windows of about 40 minutes, at least 1: 4 for 10 s every 10 minutes].
+    #[arg(long, value_name = "WINDOWS", allow_hyphen_values = true)]
+    pub duty_model_every: Option<i64>,
     /// Which header names hold which quantity.
     #[command(flatten)]
     pub columns: ColumnNames,
@@ -141,17 +146,61 @@ pub struct ReplayArgs {
     pub json: bool,
 }
 
+/// A duty-cycled device makes a model about this often by default, seconds (40 minutes):
+/// the windows between end with a Health alone. A model costs one screening, about as much
+/// energy as the rows of a 10 s window (7.5 M instructions against 8 M on the eveh
+/// harvester at 210 rows a second: `bash scripts/firmware-power.sh`); a harvester drifts
+/// over days and weeks (wear, its mounting, the seasons' temperatures), which 36 models a
+/// day follow with the daily temperature swing resolved, and every window's rows still go
+/// into each model.
+pub const DUTY_MODEL_SECONDS: f64 = 2400.0;
+
+/// The windows a model by default: those of about [`DUTY_MODEL_SECONDS`] (rounded down, so
+/// a model at least that often; at least 1).
+pub fn default_model_every(window: f64, interval: f64) -> u16 {
+    let n = (DUTY_MODEL_SECONDS / (window + interval)).floor();
+    if n.is_finite() && n >= 1.0 {
+        n.min(f64::from(u16::MAX)) as u16
+    } else {
+        1
+    }
+}
+
 /// The duty cycle the flags ask for (`None` without them), or the sentence saying what is
 /// wrong: both flags or neither, a window of a positive number of seconds up to a day, an
-/// interval of a positive number of seconds up to 30 days.
+/// interval of a positive number of seconds up to 30 days, a model every 1 to 65,535
+/// windows (only with a duty cycle; by default [`default_model_every`]).
 pub fn duty_from_flags(
     window: Option<f64>,
     interval: Option<f64>,
+    model_every: Option<i64>,
 ) -> Result<Option<lssi_proto::WireDuty>, CliError> {
     let bad = |flag, value: f64, requirement: &str| CliError::BadFlag {
         flag,
         value: value.to_string(),
         requirement: requirement.into(),
+    };
+    let model_every = match model_every {
+        None => None,
+        Some(n) if window.is_none() && interval.is_none() => {
+            return Err(CliError::BadFlag {
+                flag: "--duty-model-every",
+                value: n.to_string(),
+                requirement:
+                    "given with --duty-window and --duty-interval (windows a model of a duty cycle)"
+                        .into(),
+            });
+        }
+        Some(n) => match u16::try_from(n) {
+            Ok(n) if n >= 1 => Some(n),
+            _ => {
+                return Err(CliError::BadFlag {
+                    flag: "--duty-model-every",
+                    value: n.to_string(),
+                    requirement: "a whole number of windows from 1 to 65535".into(),
+                });
+            }
+        },
     };
     match (window, interval) {
         (None, None) => Ok(None),
@@ -183,6 +232,7 @@ pub fn duty_from_flags(
             Ok(Some(lssi_proto::WireDuty {
                 window: w as f32,
                 interval: i as f32,
+                model_every: model_every.unwrap_or_else(|| default_model_every(w, i)),
             }))
         }
     }
@@ -426,7 +476,7 @@ fn setup(args: &ReplayArgs) -> Result<Setup, CliError> {
         quantise: args.encoding == Encoding::I16,
         resume: args.resume,
         row_rate: row_rate_from_flag(args.row_rate)?,
-        duty: duty_from_flags(args.duty_window, args.duty_interval)?,
+        duty: duty_from_flags(args.duty_window, args.duty_interval, args.duty_model_every)?,
     };
     Ok(setup)
 }
@@ -549,4 +599,35 @@ pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     }
     let _ = std::fs::remove_dir_all(&dir);
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{default_model_every, duty_from_flags};
+
+    #[test]
+    fn a_duty_cycle_makes_a_model_about_every_40_minutes_by_default() {
+        // 10 s every 10 minutes: every 4th window; 10 s windows every 600 s asleep (610 s):
+        // every 3rd (a model at least every 40 minutes).
+        assert_eq!(default_model_every(10.0, 590.0), 4);
+        assert_eq!(default_model_every(10.0, 600.0), 3);
+        // Windows 40 minutes or more apart: every one; short ones: many (capped).
+        assert_eq!(default_model_every(60.0, 3600.0), 1);
+        assert_eq!(default_model_every(0.01, 0.01), u16::MAX);
+        let duty = duty_from_flags(Some(10.0), Some(590.0), None)
+            .unwrap()
+            .unwrap();
+        assert_eq!(duty.model_every, 4);
+        let duty = duty_from_flags(Some(10.0), Some(590.0), Some(1))
+            .unwrap()
+            .unwrap();
+        assert_eq!(duty.model_every, 1);
+        for bad in [0, -1, 65_536] {
+            assert!(
+                duty_from_flags(Some(10.0), Some(590.0), Some(bad)).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(duty_from_flags(None, None, Some(2)).is_err());
+    }
 }

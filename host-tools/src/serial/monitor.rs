@@ -391,8 +391,12 @@ fn configure_port<P: Read + Write + ?Sized>(
         .map_err(|e| CliError::Input(format!("the configuration does not encode: {e}.")))?;
     let what = match setup.duty {
         Some(d) => format!(
-            "rows at {} Hz, windows of {} s every {} s",
-            setup.row_hz, d.window, d.interval
+            "rows at {} Hz, windows of {} s every {} s, a model every {} window{}",
+            setup.row_hz,
+            d.window,
+            d.interval,
+            d.model_every.max(1),
+            if d.model_every > 1 { "s" } else { "" }
         ),
         None => format!("rows at {} Hz", setup.row_hz),
     };

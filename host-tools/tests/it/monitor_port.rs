@@ -138,7 +138,11 @@ fn a_row_rate_and_a_duty_cycle_are_sent_and_the_drift_is_shown() {
     );
     assert_eq!(config.window, 25, "a tenth of a second of rows, odd");
     let duty = config.duty.unwrap();
-    assert_eq!((duty.window, duty.interval), (10.0, 600.0));
+    // A model about every 40 minutes by default: every 3 windows of 610 s.
+    assert_eq!(
+        (duty.window, duty.interval, duty.model_every),
+        (10.0, 600.0, 3)
+    );
     let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
         .unwrap()
         .lines()
@@ -199,6 +203,21 @@ fn a_refused_configuration_and_bad_flags_are_one_sentence() {
         (
             &["--duty-window", "5", "--duty-interval", "0"][..],
             "at most 30 days",
+        ),
+        (
+            &[
+                "--duty-window",
+                "5",
+                "--duty-interval",
+                "5",
+                "--duty-model-every",
+                "0",
+            ][..],
+            "a whole number of windows from 1 to 65535",
+        ),
+        (
+            &["--duty-model-every", "2"][..],
+            "must be given with --duty-window and --duty-interval",
         ),
         (
             &["--row-rate", "0"][..],

@@ -217,24 +217,29 @@ fn a_row_rate_averages_the_rows_and_the_duty_cycle_is_sent() {
             name,
         );
         let log = dir.path().join(format!("{name}.tlm"));
-        let replay = ok(
-            &lssi(&[
-                "replay",
-                "--json",
-                "--baud",
-                "4000000",
-                "--row-rate",
-                rate,
-                "--duty-window",
-                "10",
-                "--duty-interval",
-                "600",
-                "--log",
-                log.to_str().unwrap(),
-                file.to_str().unwrap(),
-            ]),
-            name,
-        );
+        let mut replay_args = vec![
+            "replay",
+            "--json",
+            "--baud",
+            "4000000",
+            "--row-rate",
+            rate,
+            "--duty-window",
+            "10",
+            "--duty-interval",
+            "600",
+            "--log",
+            log.to_str().unwrap(),
+            file.to_str().unwrap(),
+        ];
+        // A model every 3 windows of 610 s by default (about 40 minutes), or as asked.
+        let model_every = if name == "b" {
+            replay_args.extend(["--duty-model-every", "2"]);
+            2
+        } else {
+            3
+        };
+        let replay = ok(&lssi(&replay_args), name);
         let sample_period = identify["sample_period"].as_f64().unwrap();
         let hz: f64 = rate.parse().unwrap();
         assert!(
@@ -252,6 +257,10 @@ fn a_row_rate_averages_the_rows_and_the_duty_cycle_is_sent() {
         let session: Value = serde_json::from_slice(&session.data).unwrap();
         assert_eq!(session["config"]["duty"]["window"], 10.0, "{session}");
         assert_eq!(session["config"]["duty"]["interval"], 600.0, "{session}");
+        assert_eq!(
+            session["config"]["duty"]["model_every"], model_every,
+            "{session}"
+        );
         assert!((session["row_rate_hz"].as_f64().unwrap() - hz).abs() < 1e-6 * hz);
     }
 }
@@ -286,6 +295,21 @@ fn a_system_replay_s_bad_flags_are_one_sentence() {
         (
             vec!["--duty-window", "5", "--duty-interval", "nan"],
             "at most 30 days",
+        ),
+        (
+            vec![
+                "--duty-window",
+                "5",
+                "--duty-interval",
+                "5",
+                "--duty-model-every",
+                "70000",
+            ],
+            "a whole number of windows from 1 to 65535",
+        ),
+        (
+            vec!["--duty-model-every", "4"],
+            "must be given with --duty-window and --duty-interval",
         ),
         (vec!["--encoding", "i16"], "travel as f32"),
         (vec!["--load-ohms=-1"], "a positive resistance in ohms"),

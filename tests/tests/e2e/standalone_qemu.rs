@@ -399,10 +399,12 @@ fn longest_wake_up(log: &str) -> u64 {
 }
 
 /// The duty-cycled device under QEMU: 10 kHz conversions decimated to 200 Hz rows, windows
-/// of 4 s every 10 s over a 30 s recording. It reports a Model and a Health at the end of
-/// each window and nothing in between; it goes on from the kept model (the rows add up
-/// over the windows), and its final model is lssi-core's f32 identifier's on the same
-/// windows' rows (the host runs lssi-device's own sampler on the recording to make them).
+/// of 4 s every 10 s over a 30 s recording, a model every second window. It reports at the
+/// end of each window and nothing in between: a Model and a Health at window 2, a Health
+/// alone at windows 1 and 3 (no screening); it goes on from the kept model (the rows add up
+/// over the windows, the Health-only windows' too), and its window-2 and final models are
+/// lssi-core's f32 identifier's on the same windows' rows (the host runs lssi-device's own
+/// sampler on the recording to make them).
 #[test]
 #[ignore = "needs qemu-system-arm and the standalone firmware ELF: bash scripts/ci-qemu.sh runs it"]
 fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
@@ -452,6 +454,7 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
     let duty = WireDuty {
         window: 4.0,
         interval: 6.0,
+        model_every: 2,
     };
     let mut wire = lssi_device::wire::config_to_wire(&config).expect("encodable");
     wire.duty = Some(duty);
@@ -468,6 +471,9 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
     let mut identifier: Box<Identifier<f32, 256, 16, 2>> =
         Box::new(Identifier::new(config).expect("a valid configuration"));
     let (mut rows, mut pauses) = (0u64, 0u32);
+    // The second window's model, screened on a snapshot as the device does.
+    let mut snapshot: Box<lssi_core::Snapshot<f32, 16>> = Box::new(lssi_core::Snapshot::empty());
+    let mut second = None;
     for (i, s) in recording.samples().enumerate() {
         let reading = Reading {
             x: s.x as f32,
@@ -487,7 +493,20 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
                         u: None,
                     });
                 }
-                Event::Pause => pauses += 1,
+                Event::Pause => {
+                    pauses += 1;
+                    if pauses == 2 {
+                        identifier.snapshot_into(&mut snapshot);
+                        assert!(snapshot.select(), "a model from {rows} rows");
+                        second = Some(
+                            lssi_device::wire::snapshot(
+                                snapshot.model().expect("a model"),
+                                SnapshotCause::Scheduled,
+                            )
+                            .expect("fits a snapshot"),
+                        );
+                    }
+                }
                 Event::End => {}
             }
         }
@@ -509,7 +528,13 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
         longest < 100_000,
         "a wake-up of {longest} ticks: the screening is not spread over rows"
     );
-    // A Model then a Health at the end of each of the 3 windows, then the final pair.
+    // One screening while sampling, window 2's: windows 1 and 3 ran none.
+    assert!(
+        log.contains("screenings run while sampling: 1 "),
+        "the windows' screenings:\n{log}"
+    );
+    // A Health alone at the end of windows 1 and 3, a Model then a Health at window 2,
+    // then the final pair.
     let kinds: Vec<&str> = messages
         .iter()
         .map(|m| match m {
@@ -521,10 +546,20 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
         .collect();
     assert_eq!(
         kinds,
-        [
-            "model", "health", "model", "health", "model", "health", "final", "health"
-        ],
+        ["health", "model", "health", "health", "final", "health"],
         "{messages:?}"
+    );
+    // Each Health carries the drift of the last model made (window 2's, the first: 0).
+    let drifts: Vec<Option<(u32, f32)>> = messages
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { drift, .. } => Some(drift.map(|d| (d.windows, d.relative))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        drifts,
+        [None, Some((2, 0.0)), Some((2, 0.0)), Some((2, 0.0))]
     );
     let samples: Vec<u64> = messages
         .iter()
@@ -558,17 +593,29 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
     else {
         panic!("no final model");
     };
-    assert_eq!(got.terms, expected.terms);
-    for (i, (g, w)) in got
-        .coefficients
+    let Some(DeviceMsg::Model(got_second)) = messages
         .iter()
-        .zip(&expected.coefficients)
-        .enumerate()
-    {
-        assert!(
-            (g - w).abs() <= 1e-5 * w.abs(),
-            "term {i}: {g} on the device, {w} on the host"
-        );
+        .find(|m| matches!(m, DeviceMsg::Model(s) if s.cause == SnapshotCause::Scheduled))
+    else {
+        panic!("no window's model");
+    };
+    let second = second.expect("two pauses");
+    for (what, got, expected) in [
+        ("final", got, &expected),
+        ("window 2's", got_second, &second),
+    ] {
+        assert_eq!(got.terms, expected.terms, "{what}");
+        for (i, (g, w)) in got
+            .coefficients
+            .iter()
+            .zip(&expected.coefficients)
+            .enumerate()
+        {
+            assert!(
+                (g - w).abs() <= 1e-5 * w.abs(),
+                "{what} model, term {i}: {g} on the device, {w} on the host"
+            );
+        }
     }
     println!("windowed device's final model: {:?}", got.coefficients);
 }

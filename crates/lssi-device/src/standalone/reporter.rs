@@ -3,6 +3,7 @@
 use super::{Clock, FromHost, Schedule, Screening, Shared};
 use crate::Transport;
 use crate::decimate::{Decimator, factor_for};
+use core::num::NonZeroU16;
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
 use lssi_core::Snapshot;
@@ -12,14 +13,15 @@ use lssi_proto::{
     encode,
 };
 
-/// How the model moved from one duty-cycle window to the next: what a harvester that
-/// changes over weeks shows first.
+/// How the model moved from one duty-cycle window's model to the next (a model every
+/// `model_every` windows: see [`lssi_proto::WireDuty`]): what a harvester that changes
+/// over weeks shows first.
 ///
 /// Per term, the relative change `|c − p| / |p|` of its coefficient from the previous
-/// window's model `p` to this one's `c` (1 for a term that entered or left the model).
+/// model `p` to this one's `c` (1 for a term that entered or left the model).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Drift {
-    /// Windows reported since configured (this one included).
+    /// Windows reported since configured (this one, the window of the model, included).
     pub windows: u32,
     /// Root mean square of the terms' relative changes, over the terms in either model
     /// (0 for the first window, which has nothing to compare with).
@@ -106,10 +108,12 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
     finished: bool,
     /// A host's configuration, accepted and not yet taken by the board to keep.
     to_keep: Option<WireConfig>,
-    /// The duty cycle (windows and intervals, seconds), if any: reports only at the end of
-    /// a window, then.
-    duty: Option<WireDuty>,
-    /// The previous window's model and how the last one moved from it.
+    /// With a duty cycle (reports only at the end of a window, then), a model every how
+    /// many windows; `None` without one. (Its window and interval are the sampling
+    /// interrupt's schedule's: not kept here, where they would take room in a board's main
+    /// frame for good.)
+    duty: Option<NonZeroU16>,
+    /// The model of the last window that made one, and how it moved from the one before.
     previous: Option<(
         heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
         heapless::Vec<f32, MAX_TERMS>,
@@ -153,10 +157,10 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     /// Samples in windows of `duty` (the board's start-up configuration; a host's
     /// `Configure` sets it too): the sampling interrupt's schedule in conversions of the
     /// ADC set by [`Reporter::set_adc`] (call that first) or, without one, of rows at the
-    /// configuration's rate. Reports (Model, then Health) go out at the end of each window
-    /// only.
+    /// configuration's rate. Reports go out at the end of each window only: Model then
+    /// Health every `model_every`-th window, Health alone at the others (no screening).
     pub fn set_duty(&mut self, duty: Option<WireDuty>, shared: &Shared<P, S>) {
-        self.duty = duty;
+        self.duty = duty.map(|d| NonZeroU16::new(d.model_every).unwrap_or(NonZeroU16::MIN));
         let schedule = match (duty, self.config) {
             (Some(d), Some(config)) => {
                 let config = S::base(&config);
@@ -194,8 +198,8 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         self.screen_cost_max
     }
 
-    /// How the model moved between the last two windows of the duty cycle (after each
-    /// window's report; `None` before the first or without a duty cycle).
+    /// How the model moved between the last two models of the duty cycle (after the report
+    /// of each window that made one; `None` before the first or without a duty cycle).
     pub fn drift(&self) -> Option<Drift> {
         self.drift
     }
@@ -277,7 +281,13 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
         if let Some((snapshot, cause, window)) = shared.take_full() {
-            self.screen(snapshot, cause, clock);
+            // A duty cycle's window makes a model every `model_every`-th time only: the
+            // others end with Health alone, unscreened (their rows are in the identifier,
+            // and the next model's snapshot is taken from it anew).
+            let model = !window || self.models_this_window();
+            if model {
+                self.screen(snapshot, cause, clock);
+            }
             critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
             screened();
             if cause == SnapshotCause::Final {
@@ -287,9 +297,12 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
                 return Ok(());
             }
             if window {
-                self.end_window();
+                self.windows = self.windows.saturating_add(1);
                 self.last_report = clock.now();
-                self.send_model(link)?;
+                if model {
+                    self.end_window();
+                    self.send_model(link)?;
+                }
                 self.send_health::<L, K>(shared, link)?;
                 return Ok(());
             }
@@ -342,11 +355,18 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         }
     }
 
-    /// A window's model is in: how it moved from the previous window's. Not inlined (its
-    /// copy of the previous model is on the stack only while it runs).
+    /// Whether the duty cycle's window ending now makes a model (every `model_every`-th
+    /// window; 0 or 1: every one).
+    fn models_this_window(&self) -> bool {
+        let every = self.duty.map_or(1, |every| u32::from(every.get()));
+        (self.windows.saturating_add(1)).is_multiple_of(every)
+    }
+
+    /// A window's model is in: how it moved from the previous model's (the windows between
+    /// made none). Not inlined (its copy of the previous model is on the stack only while
+    /// it runs).
     #[inline(never)]
     fn end_window(&mut self) {
-        self.windows = self.windows.saturating_add(1);
         // Drift is reported for one equation's model (a system's is in its frames).
         let Some(DeviceMsg::Model(latest)) = self.latest.as_ref() else {
             return;

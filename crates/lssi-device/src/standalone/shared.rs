@@ -59,8 +59,9 @@ pub enum Event {
     },
     /// The sensor has no more samples (the QEMU stand-in's recording ended).
     End,
-    /// A duty cycle's window ended: the model of every row so far is screened and reported,
-    /// then the sampler sleeps for the interval.
+    /// A duty cycle's window ended: the model of every row so far is screened and reported
+    /// (at a window that makes no model, Health alone), then the sampler sleeps for the
+    /// interval.
     Pause,
 }
 

@@ -384,6 +384,18 @@ fn windows(
     interval_s: f32,
     reading: impl Fn(u32) -> f32,
 ) -> (Vec<(u64, lssi_device::standalone::Drift)>, Vec<DeviceMsg>) {
+    windows_every(n, window_s, interval_s, 1, reading)
+}
+
+/// [`windows`] with a model every `model_every` windows (the others Health only): per
+/// window that made a model, (rows, the drift), and the frames.
+fn windows_every(
+    n: u32,
+    window_s: f32,
+    interval_s: f32,
+    model_every: u16,
+    reading: impl Fn(u32) -> f32,
+) -> (Vec<(u64, lssi_device::standalone::Drift)>, Vec<DeviceMsg>) {
     let shared: &'static Shared<P> = Box::leak(Box::new(Shared::new()));
     shared.give_snapshot(Box::leak(Box::new(Snapshot::empty())));
     let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
@@ -403,6 +415,7 @@ fn windows(
         Some(lssi_proto::WireDuty {
             window: window_s,
             interval: interval_s,
+            model_every,
         }),
         shared,
     );
@@ -497,6 +510,96 @@ fn duty_cycled_windows_report_once_each_and_go_on_from_the_kept_model() {
         .iter()
         .map(|(_, d)| Some(lssi_device::wire::drift_to_wire(d)))
         .collect();
+    assert_eq!(carried, expected);
+}
+
+/// A model every third window: the windows between end with a Health alone (no screening),
+/// their rows still go in, and the models made are those of a model every window at the
+/// same windows, bit for bit; the drift is measured between consecutive models.
+#[test]
+fn a_model_every_third_window_is_the_every_window_model_and_the_others_send_health_alone() {
+    use lssi_device::standalone::Drift;
+    let x = duffing(27_000, |i| if i < 12_000 { 4.0 } else { 5.0 });
+    let (every, every_frames) = windows(27_000, 10.0, 20.0, |i| x[i as usize]);
+    let (third, frames) = windows_every(27_000, 10.0, 20.0, 3, |i| x[i as usize]);
+    let kinds: String = frames
+        .iter()
+        .map(|m| match m {
+            DeviceMsg::Model(_) => 'M',
+            DeviceMsg::Health { .. } => 'H',
+            _ => '?',
+        })
+        .collect();
+    assert_eq!(kinds, "HHMHHHMHHHMH");
+    // Every window's Health counts its rows: the Health-only windows' rows went in.
+    let samples: Vec<u64> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { samples, .. } => Some(*samples),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(samples, (1..=9).map(|k| 1000 * k).collect::<Vec<u64>>());
+    let models = |frames: &[DeviceMsg]| -> Vec<lssi_proto::ModelSnapshot> {
+        frames
+            .iter()
+            .filter_map(|m| match m {
+                DeviceMsg::Model(s) => Some(s.clone()),
+                _ => None,
+            })
+            .collect()
+    };
+    let (all, made) = (models(&every_frames), models(&frames));
+    assert_eq!(all.len(), 9);
+    assert_eq!(made.len(), 3);
+    for (k, model) in made.iter().enumerate() {
+        assert_eq!(model, &all[3 * k + 2], "window {}", 3 * k + 3);
+    }
+    // So with every 2nd and 4th window, and on the unchanged harvester and a softer one
+    // (k 3.2) with other windows (8 s every 25 s).
+    let steady = duffing(27_000, |_| 4.0);
+    let soft = duffing(27_000, |_| 3.2);
+    for (name, x, window, interval) in [
+        ("changed", &x, 10.0, 20.0),
+        ("steady", &steady, 10.0, 20.0),
+        ("soft", &soft, 8.0, 17.0),
+    ] {
+        let (_, all_frames) = windows(27_000, window, interval, |i| x[i as usize]);
+        let all = models(&all_frames);
+        for n in [2u16, 4] {
+            let (_, frames) = windows_every(27_000, window, interval, n, |i| x[i as usize]);
+            let made = models(&frames);
+            let n = usize::from(n);
+            assert_eq!(made.len(), all.len() / n, "{name}, every {n}");
+            for (k, model) in made.iter().enumerate() {
+                assert_eq!(model, &all[n * k + n - 1], "{name}, every {n}, model {k}");
+            }
+        }
+    }
+    // The drift at windows 3, 6 and 9, each from the model before.
+    assert_eq!(every.len(), 9);
+    let windows: Vec<u32> = third.iter().map(|(_, d)| d.windows).collect();
+    assert_eq!(windows, [3, 6, 9]);
+    assert_eq!(third[0].1.relative, 0.0);
+    for k in 1..3 {
+        let expected = Drift::between(&made[k - 1], &made[k], 3 * k as u32 + 3);
+        assert_eq!(third[k].1, expected, "window {}", 3 * k + 3);
+    }
+    // The stiffer harvester (from 120 s, window 5) shows at window 6's model.
+    assert!(
+        third[1].1.relative > third[2].1.relative,
+        "drift {:?}",
+        third.iter().map(|(_, d)| d.relative).collect::<Vec<_>>()
+    );
+    // Each Health carries the drift of the last model made (none before the first).
+    let carried: Vec<Option<u32>> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { drift, .. } => Some(drift.map(|d| d.windows)),
+            _ => None,
+        })
+        .collect();
+    let expected: Vec<Option<u32>> = (1..=9u32).map(|k| (k >= 3).then_some(k - k % 3)).collect();
     assert_eq!(carried, expected);
 }
 

@@ -392,9 +392,10 @@ fn main() -> ! {
     reporter.set_duty(duty, &SHARED);
     if let Some(d) = duty {
         defmt::info!(
-            "duty cycle: {=f32} s windows every {=f32} s",
+            "duty cycle: {=f32} s windows every {=f32} s, a model every {=u16} window(s)",
             d.window,
-            d.window + d.interval
+            d.window + d.interval,
+            d.model_every.max(1)
         );
     }
     let mut link = Link { tx: tx_in };

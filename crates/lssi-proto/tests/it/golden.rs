@@ -20,14 +20,20 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 7, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 8, "update the README's worked examples");
+    assert_eq!(
+        frame(&HostMsg::Hello {
+            protocol_version: 8
+        }),
+        [0x01, 0x06, 0x08, 0x1D, 0x2F, 0xB8, 0x7B, 0x00]
+    );
+    // Version-7, -6 and -5 hosts' Hellos still read as such (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 7
         }),
         [0x01, 0x06, 0x07, 0x39, 0x13, 0xAB, 0x25, 0x00]
     );
-    // Version-6 and -5 hosts' Hellos still read as such (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 6
@@ -142,6 +148,7 @@ fn golden_config() -> WireConfig {
         duty: Some(WireDuty {
             window: 10.0,
             interval: 590.0,
+            model_every: 4,
         }),
     }
 }
@@ -149,7 +156,8 @@ fn golden_config() -> WireConfig {
 /// `WireConfig`'s bytes are those of protocol version 5's flat record (taken from main
 /// before the library and channel fields were nested and renamed after `Config`): nesting
 /// adds no framing in postcard, so the rename did not change the wire. Version 6 appends
-/// `duty` (`01`, then window 10.0 and interval 590.0 as f32).
+/// `duty` (`01`, then window 10.0 and interval 590.0 as f32); version 8 its `model_every`
+/// (4, a vu16).
 #[test]
 fn golden_configure_frame() {
     let payload = [
@@ -159,6 +167,8 @@ fn golden_configure_frame() {
         0x99, 0xA9, 0x3F, 0x01, 0x00, 0x00, 0x00, 0x00, 0x65, 0xCD, 0xCD, 0x41, 0x40, 0x00,
         // Version 6: Some(WireDuty { window: 10.0, interval: 590.0 }).
         0x01, 0x00, 0x00, 0x20, 0x41, 0x00, 0x80, 0x13, 0x44,
+        // Version 8: its model_every, 4 (a vu16).
+        0x04,
     ];
     let mut buf = [0u8; 128];
     let bytes = postcard::to_slice(&golden_config(), &mut buf).expect("fits");
@@ -172,7 +182,8 @@ fn golden_configure_frame() {
         0x01, 0x02, 0x0A, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0x35, 0x40, 0x01, 0x02, 0x01, 0x01,
         0x01, 0x01, 0x01, 0x01, 0x06, 0x04, 0x40, 0x90, 0x4E, 0x18, 0x0B, 0x04, 0x9A, 0x99, 0x99,
         0x99, 0x99, 0x99, 0xA9, 0x3F, 0x01, 0x01, 0x01, 0x01, 0x06, 0x65, 0xCD, 0xCD, 0x41, 0x40,
-        0x02, 0x01, 0x01, 0x03, 0x20, 0x41, 0x08, 0x80, 0x13, 0x44, 0xA6, 0x1A, 0x17, 0x96, 0x00,
+        0x02, 0x01, 0x01, 0x03, 0x20, 0x41, 0x09, 0x80, 0x13, 0x44, 0x04, 0x1A, 0x81, 0x9B, 0x11,
+        0x00,
     ];
     assert_eq!(frame(&HostMsg::Configure(golden_config())), golden);
     let mut bytes = golden;

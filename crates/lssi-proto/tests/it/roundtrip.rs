@@ -369,12 +369,12 @@ fn health_carries_the_drift_since_version_7_and_a_version_6_peer_is_refused() {
     ));
     // So a version-6 device is refused at its HelloReply, with a sentence naming both
     // versions, before any Health of it is read.
-    assert_eq!(PROTOCOL_VERSION, 7);
+    assert_eq!(PROTOCOL_VERSION, 8);
     let mut reply = frame_payload(&[0x00, 6, 16, 0x80, 0x02, 24]);
     let error = decode_frame::<DeviceMsg>(&mut reply).expect_err("refused");
-    assert_eq!(error, Error::VersionMismatch { ours: 7, theirs: 6 });
+    assert_eq!(error, Error::VersionMismatch { ours: 8, theirs: 6 });
     assert_eq!(
         error.to_string(),
-        "the peer speaks lssi protocol version 6, but this build speaks version 7"
+        "the peer speaks lssi protocol version 6, but this build speaks version 8"
     );
 }

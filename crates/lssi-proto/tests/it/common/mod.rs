@@ -359,6 +359,7 @@ pub fn worst_config() -> WireConfig {
         duty: Some(WireDuty {
             window: f32::MAX,
             interval: f32::MAX,
+            model_every: u16::MAX,
         }),
     }
 }
