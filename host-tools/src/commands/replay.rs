@@ -18,7 +18,7 @@ use crate::recording::ColumnNames;
 use crate::serial::device::{BURST_RATE, DEFAULT_FIRMWARE, MAX_BURST, SimOptions};
 use crate::serial::link::LinkOptions;
 use crate::serial::replay::{ReplayReport, SystemReplayReport, render_link};
-use crate::serial::session::{self, Device, Setup};
+use crate::serial::session::{self, Device, RowRate, Setup};
 
 /// How the samples cross the link (`--encoding`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -109,14 +109,14 @@ pub struct ReplayArgs {
     /// (the recording's rate divided by a whole number; a first-order CIC, as a device's
     /// ADC oversampler, then the device's 3-tap droop compensator, which drops the first and
     /// last rows), and the model is that of the averaged recording [default: the
-    /// recording's own rate, so that the model is `lssi identify --f32`'s]. To replay at the
-    /// rate `lssi identify FILE` proposes ("a device needs N Hz for this harvester"), give
-    /// the recording's rate divided by the largest whole number that keeps it at or above N
-    /// (10 kHz and N = 210: --row-rate 212.766, 10000/47). Not the default: the model is
+    /// recording's own rate, so that the model is `lssi identify --f32`'s]. `proposed`: the
+    /// rate `lssi identify FILE` proposes ("a device needs N Hz for this harvester"), the
+    /// recording's rows averaged by the largest whole number that keeps them at or above N
+    /// (10 kHz and N = 210: 10000/47 = 212.766 rows a second). Not the default: the model is
     /// then the averaged rows' (`lssi identify --f32 --no-refine` of the averaged file), not
     /// the recording's own.
-    #[arg(long, value_name = "HZ", value_parser = number, allow_hyphen_values = true)]
-    pub row_rate: Option<f64>,
+    #[arg(long, value_name = "HZ|proposed", value_parser = row_rate_value, allow_hyphen_values = true)]
+    pub row_rate: Option<RowRate>,
     /// The duty cycle's window sent in the configuration: seconds of identification before
     /// the device reports and sleeps (with --duty-interval; a device the host feeds, such
     /// as firmware-sim, ignores it).
@@ -235,6 +235,25 @@ pub fn duty_from_flags(
                 model_every: model_every.unwrap_or_else(|| default_model_every(w, i)),
             }))
         }
+    }
+}
+
+/// `--row-rate`'s value: `proposed`, or a number (checked by [`row_rate_from_flag`]).
+fn row_rate_value(text: &str) -> Result<RowRate, String> {
+    if text.trim().eq_ignore_ascii_case("proposed") {
+        return Ok(RowRate::Proposed);
+    }
+    text.trim()
+        .parse::<f64>()
+        .map(RowRate::Hz)
+        .map_err(|_| format!("{text:?} is neither a number of rows a second nor `proposed`"))
+}
+
+/// The replay's `--row-rate` checked on its own (against the recording later).
+fn replay_row_rate(rate: Option<RowRate>) -> Result<Option<RowRate>, CliError> {
+    match rate {
+        Some(RowRate::Hz(hz)) => Ok(row_rate_from_flag(Some(hz))?.map(RowRate::Hz)),
+        other => Ok(other),
     }
 }
 
@@ -475,7 +494,7 @@ fn setup(args: &ReplayArgs) -> Result<Setup, CliError> {
         progress: std::io::stderr().is_terminal() && !args.json,
         quantise: args.encoding == Encoding::I16,
         resume: args.resume,
-        row_rate: row_rate_from_flag(args.row_rate)?,
+        row_rate: replay_row_rate(args.row_rate)?,
         duty: duty_from_flags(args.duty_window, args.duty_interval, args.duty_model_every)?,
     };
     Ok(setup)

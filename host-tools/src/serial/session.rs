@@ -62,7 +62,7 @@ pub struct Setup {
     pub resume: bool,
     /// The row rate (`--row-rate`): the recording's rows averaged down to it (`None`: its
     /// own rate).
-    pub row_rate: Option<f64>,
+    pub row_rate: Option<RowRate>,
     /// The duty cycle sent in the configuration (`--duty-window`, `--duty-interval`).
     pub duty: Option<lssi_proto::WireDuty>,
 }
@@ -108,6 +108,66 @@ impl Observer for Watcher {
     }
 }
 
+/// The rows a second a replay sends (`--row-rate`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RowRate {
+    /// This many rows a second: the recording's rate divided by a whole number.
+    Hz(f64),
+    /// The rate `lssi identify` proposes for the recording ("a device needs N Hz for this
+    /// harvester"): the recording's rows averaged by the largest whole number that keeps the
+    /// rows at or above it.
+    Proposed,
+}
+
+/// How many of the recording's rows a row averages at `rate` (`sample_period` the
+/// recording's own); for [`RowRate::Proposed`], from the streaming model `lssi identify
+/// --no-refine` finds in `recording` (a note on stderr says which rate and why).
+fn rows_a_row(
+    file: &str,
+    rate: RowRate,
+    recording: &Recording,
+    options: &Options,
+    sample_period: f64,
+) -> Result<usize, CliError> {
+    use crate::identify::pipeline::{self, Failure, Refine};
+    let hz = match rate {
+        RowRate::Hz(hz) => hz,
+        RowRate::Proposed => {
+            let report = match pipeline::identify(recording, options, Refine::No("")) {
+                Ok(done) => done.report,
+                Err(Failure::Withheld(sentence, ..)) => {
+                    return Err(CliError::Input(format!(
+                        "{file}: --row-rate proposed needs lssi identify's model of the recording to propose a rate, and it is withheld ({sentence}); give --row-rate HZ."
+                    )));
+                }
+                Err(Failure::Error(sentence)) => return Err(CliError::Input(sentence)),
+            };
+            let Some(proposal) = report.device_rate() else {
+                return Err(CliError::Input(format!(
+                    "{file}: --row-rate proposed: lssi identify proposes no rate for this recording (its model has no line to sample); give --row-rate HZ."
+                )));
+            };
+            let own = 1.0 / sample_period;
+            let k = (own / proposal.hz)
+                .floor()
+                .clamp(1.0, f64::from(lssi_device::decimate::MAX_FACTOR));
+            let sentence = identify::device_rate::sentence(&proposal, sample_period);
+            if own < proposal.hz {
+                eprintln!(
+                    "lssi: warning: {file}: replaying every row ({own:.6} a second): the recording is slower than the rate lssi identify proposes ({sentence})."
+                );
+            } else {
+                eprintln!(
+                    "lssi: replaying at {:.6} rows a second, the recording's rows averaged {k} at a time: {sentence}.",
+                    own / k
+                );
+            }
+            return Ok(k as usize);
+        }
+    };
+    rows_per_row(file, sample_period, hz).map_err(CliError::Input)
+}
+
 /// Replays as `setup` says and returns the report (what `lssi replay` prints).
 pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
     let recording = Recording::read(&setup.file, &setup.columns)?;
@@ -115,8 +175,8 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
     let recording = match setup.row_rate {
         Some(rate) => {
             let (own, _) = identify::configure(&recording, &setup.options)?;
-            let k = rows_per_row(&setup.file.display().to_string(), own.sample_period, rate)
-                .map_err(CliError::Input)?;
+            let file = setup.file.display().to_string();
+            let k = rows_a_row(&file, rate, &recording, &setup.options, own.sample_period)?;
             decimate_recording(&recording, k)
         }
         None => recording,
@@ -175,7 +235,15 @@ pub fn replay_system(
     let data = match setup.row_rate {
         Some(rate) => {
             let (own, _) = crate::system::configure(data, &setup.options, coupling_order)?;
-            let k = rows_per_row(&file, own.base.sample_period, rate).map_err(CliError::Input)?;
+            // Proposed from the motion's equation (x and u), as `lssi identify` proposes it
+            // for the same columns without the electrical one.
+            let k = rows_a_row(
+                &file,
+                rate,
+                &data.recording,
+                &setup.options,
+                own.base.sample_period,
+            )?;
             decimate_system(data, k)
         }
         None => data.clone(),

@@ -179,3 +179,83 @@ fn bad_flags_and_missing_devices_are_one_sentence() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
     }
 }
+
+/// `--row-rate proposed`: the rows averaged down to the rate `lssi identify` proposes (the
+/// recording's rate over the largest whole number keeping them at or above it), the same
+/// model as that rate given as a number, the proposal named on stderr; a recording whose
+/// model is withheld has no proposal, and says so.
+#[test]
+fn the_proposed_row_rate_is_the_identified_rate_averaged_down() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("eveh.csv");
+    let f = file.to_str().unwrap();
+    let out = lssi(&[
+        "gen", "eveh", "--rate", "2000", "--t-end", "12", "--seed", "5", f,
+    ]);
+    assert!(out.status.success());
+    let identify = lssi(&["identify", "--no-refine", f]);
+    let text = String::from_utf8_lossy(&identify.stdout);
+    let proposed: f64 = text
+        .split("a device needs ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no proposal: {text}"));
+    let k = (2000.0 / proposed).floor();
+    let rate = 2000.0 / k;
+    let run = |row_rate: &str| {
+        let out = lssi(&[
+            "replay",
+            "--json",
+            "--baud",
+            "4000000",
+            "--row-rate",
+            row_rate,
+            "--log",
+            dir.path().join(format!("{row_rate}.tlm")).to_str().unwrap(),
+            f,
+        ]);
+        assert!(
+            out.status.success(),
+            "{row_rate}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (json, String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (by_name, said) = run("proposed");
+    let (by_number, _) = run(&format!("{rate}"));
+    assert!(
+        said.contains(&format!("averaged {k} at a time"))
+            && said.contains(&format!("a device needs {proposed} Hz")),
+        "{said}"
+    );
+    let period = by_name["sample_period"].as_f64().unwrap();
+    assert!((1.0 / period - rate).abs() < 1e-6 * rate, "{period}");
+    assert!(1.0 / period >= proposed);
+    assert_eq!(by_name["terms"], by_number["terms"]);
+    // White noise: no model, so no proposal.
+    let noise = dir.path().join("noise.csv");
+    let mut csv = String::from("t,x\n");
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    for i in 0..4000 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let x = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        csv.push_str(&format!("{},{x}\n", i as f64 / 2000.0));
+    }
+    std::fs::write(&noise, csv).unwrap();
+    let out = lssi(&["replay", "--row-rate", "proposed", noise.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--row-rate proposed") && err.contains("give --row-rate HZ"),
+        "{err}"
+    );
+    let out = lssi(&["replay", "--row-rate", "fast", f]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("nor `proposed`"), "{err}");
+}
