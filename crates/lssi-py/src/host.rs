@@ -482,16 +482,33 @@ pub fn simulate_system(
     t: &[f64],
     u: &[f64],
     start: &[f64],
+    layout: &[usize],
     bound: f64,
 ) -> Vec<Vec<f64>> {
-    // The simulator's state is (x, v, e₁, e₂, x2, v2); the Python package's systems have one
-    // displacement.
+    // The simulator's state is (x, v, e₁, e₂, x2, v2); `layout` says where each of the
+    // report's states (x, v[, x2, v2], then the electrical ones) sits in it.
     let mut s = [0.0; 6];
-    for (k, q) in start.iter().enumerate().take(4) {
+    for (q, &k) in start.iter().zip(layout) {
         s[k] = *q;
     }
     let states = model.run(t, u, s, bound);
-    (0..start.len())
-        .map(|k| states.iter().map(|s| s[k]).collect())
+    layout
+        .iter()
+        .map(|&k| states.iter().map(|s| s[k]).collect())
         .collect()
+}
+
+/// Where each of a system report's states sits in the simulator's state (x, v, e₁, e₂, x2,
+/// v2): the first displacement and its velocity (0, 1), a second's (4, 5), then the
+/// electrical states (2, 3), for a report whose equations are `targets` (`x''` or `x1''`,
+/// `x2''`, then `V'` or `i'`).
+pub fn state_layout(targets: &[String]) -> Vec<usize> {
+    let mechanical = targets.iter().filter(|t| t.ends_with("''")).count();
+    let electrical = targets.len() - mechanical;
+    let mut layout = vec![0, 1];
+    if mechanical > 1 {
+        layout.extend([4, 5]);
+    }
+    layout.extend((0..electrical).map(|k| 2 + k));
+    layout
 }

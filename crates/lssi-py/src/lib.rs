@@ -402,11 +402,18 @@ impl SystemFit {
                     return Err("u: the model has an excitation term u, so a simulation needs u on the same grid as t.".into());
                 }
                 let u = u.unwrap_or_default();
+                let targets: Vec<String> = fitted
+                    .report
+                    .equations
+                    .iter()
+                    .map(|e| e.target.clone())
+                    .collect();
                 Ok(host::simulate_system(
                     &fitted.model,
                     &t,
                     &u,
                     &x0,
+                    &host::state_layout(&targets),
                     fitted.bound,
                 ))
             })

@@ -107,3 +107,33 @@ def test_every_piezo_variant_equals_the_command(cli, tmp_path, wells, observe):
     out = m.simulate(x0, col["t"], u=col["u"])
     assert sorted(out) == ["V", "v", "x"]
     assert all(values.shape == col["t"].shape for values in out.values())
+
+
+def test_two_displacements_from_a_file_simulate_each_state(cli, tmp_path):
+    """A two-degree-of-freedom harvester (x1, x2, V, u; `lssi gen twodof`): lssi.identify
+    reads it as the command does, and simulate returns each named state (the simulator's
+    own order is another: x1, v1, V, ..., x2, v2) following the recording; score and a
+    DataFrame fit, which take one displacement, say so."""
+    path = tmp_path / "twodof.csv"
+    cli("gen", "twodof", "--t-end", "5", "--seed", "102", path)
+    expected = cli("identify", path, "--json", "--f64").strip()
+    m = lssi.identify(path)
+    assert m.to_json() == expected
+    assert m.states() == ["x1", "v1", "x2", "v2", "V"]
+    assert list(m.equations()) == ["x1''", "x2''", "V'"]
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    n = 2000
+    t = data["t"][:n]
+    x0 = {"x1": data["x1"][0], "v1": 0.0, "x2": data["x2"][0], "v2": 0.0, "V": data["V"][0]}
+    out = m.simulate(x0, t, u=data["u"][:n])
+    assert sorted(out) == ["V", "v1", "v2", "x1", "x2"]
+    for name in ("x1", "x2", "V"):
+        measured = data[name][:n]
+        nrmse = np.sqrt(np.mean((out[name] - measured) ** 2)) / np.std(measured)
+        assert nrmse < 0.01, (name, nrmse)
+    with pytest.raises(ValueError, match="score takes one displacement x, and this system has two"):
+        m.score(data["x1"][:n], t, u=data["u"][:n], V=data["V"][:n])
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({name: data[name] for name in data.dtype.names})
+    with pytest.raises(ValueError, match="two displacements \\(x1, x2\\).*lssi.identify\\(path\\)"):
+        lssi.Model().fit(frame)

@@ -224,6 +224,12 @@ def _frame(frame, t, v, u, electrical: Optional[Dict[str, Any]] = None):
     arguments do not give them."""
     columns = list(frame.columns)
     x = frame["x"].to_numpy() if "x" in columns else None
+    if x is None and "x1" in columns and "x2" in columns:
+        raise ValueError(
+            "the DataFrame has two displacements (x1, x2): a two-degree-of-freedom harvester is "
+            "identified from its CSV file, lssi.identify(path); Model().fit takes one "
+            "displacement x."
+        )
     if x is None and (electrical is None or "v" not in columns
                       or not any(name in columns for name in ELECTRICAL)):
         raise ValueError(f"the DataFrame has no column 'x' (it has {columns}).")
@@ -709,6 +715,12 @@ class Model:
 
     def _score_system(self, x, t, u, v, electrical: Dict[str, Any]) -> Dict[str, float]:
         states = self.states()
+        if "x2" in states:
+            raise ValueError(
+                f"score takes one displacement x, and this system has two ({states}): "
+                "simulate it with simulate(x0, t, u=u) from a mapping of its states and "
+                "compare the arrays with the measured ones."
+            )
         for name, value in electrical.items():
             if value is not None and name not in states:
                 raise ValueError(
