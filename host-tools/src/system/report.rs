@@ -494,6 +494,23 @@ pub fn refit(
     least_squares(&a, &y)
 }
 
+/// The state in slot `a` of the simulator's state (x, v, e₁, e₂, x2, v2) as a multiple of the
+/// one in slot `b` over the standard errors' rows: c ≈ Σ aᵢbᵢ / Σ bᵢ², its standard error and
+/// the fit's NRMSE (the residual's RMS over a's RMS); `None` without rows or with b ≡ 0.
+pub fn proportional(dt: f64, data: &SystemData, a: usize, b: usize) -> Option<(f64, f64, f64)> {
+    let (rows, _) = regression_rows(dt, data).ok()?;
+    let design: Vec<Vec<f64>> = rows.iter().map(|r| vec![r.states[b]]).collect();
+    let y: Vec<f64> = rows.iter().map(|r| r.states[a]).collect();
+    let (beta, se) = least_squares(&design, &y)?;
+    let c = *beta.first()?;
+    let rss: f64 = rows
+        .iter()
+        .map(|r| (r.states[a] - c * r.states[b]).powi(2))
+        .sum();
+    let total: f64 = y.iter().map(|q| q * q).sum();
+    (total > 0.0).then(|| (c, *se.first().unwrap_or(&f64::NAN), (rss / total).sqrt()))
+}
+
 /// The standard errors of the least-squares coefficients of `y ≈ A β`: σ² (AᵀA)⁻¹ with σ² =
 /// RSS / (n − p); `None` with too few rows or a singular AᵀA.
 pub fn least_squares_se(a: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
