@@ -25,9 +25,9 @@
 //! 9. **Every printed term resolved**: a refined model's term under [`MIN_TERM_SE`] standard
 //!    error from 0 ([`unresolved_term`]; in [`crate::identify::pipeline`] too).
 //! 10. **The printed model predicts the held-out half**: over all refinement's windows, not
-//!    the median ([`prediction_misses`]; in [`crate::identify::pipeline`]).
+//!     the median ([`prediction_misses`]; in [`crate::identify::pipeline`]).
 //! 11. **A damping the record resolves**: not v³ (or x²·v) printed in place of v when,
-//!    refined together, neither is resolved ([`unresolved_damping`]; in the pipeline).
+//!     refined together, neither is resolved ([`unresolved_damping`]; in the pipeline).
 
 use crate::identify::blemish::{CleanWindows, Scan};
 use crate::identify::{Report, WINDOW_CAPACITY};
@@ -609,7 +609,7 @@ pub fn unresolved_term(report: &Report) -> Option<String> {
 pub fn unresolved_damping(check: &crate::identify::refine::Check) -> Option<String> {
     let terms = check.unresolved_damping.as_ref()?;
     Some(format!(
-        "the record cannot tell the model's damping from a linear one: refined together, {terms} standard errors from 0 (each under {:.0}), and the model with v in its place does not predict the held-out half as well by the paired test, so which damps is set by the noise (a longer or less noisy record)",
+        "the record cannot tell the model's damping from a linear one: refined together, {terms} standard errors from 0 (each under {:.0}), and the model with v in its place was not taken (it predicts the held-out half worse, or its v alone is not resolved), so which damps is set by the noise (a longer or less noisy record)",
         crate::identify::refine::SIGNIFICANT_SE
     ))
 }
