@@ -85,8 +85,11 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
         Refine::Yes => {
             let check = refine::refine_recording(recording, &report);
             report.take_refined(&check);
+            // Judged on the refined path only: --no-refine prints the device's model as it
+            // computes it (at 10 % noise it loses the damping that refinement brings back).
             contradicted = quality::prediction_misses(recording, &check)
-                .or_else(|| quality::unresolved_damping(&check));
+                .or_else(|| quality::unresolved_damping(&check))
+                .or_else(|| quality::undamped_forced(&report));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {

@@ -550,3 +550,41 @@ fn a_printed_model_that_misses_the_held_out_half_is_withheld() {
     let why = quality::prediction_misses(&recording, &missing).unwrap();
     assert!(why.contains("NRMSE of 47 %"), "{why}");
 }
+
+/// A driven model without damping (no term in v) is withheld, naming the lost damping: a
+/// harvester dissipates, and the selection lost the damping at 5 % noise on a short record
+/// at 278 Hz (issue 25: scripts/hostile-eveh.sh seed 9728, printed
+/// `x'' = 334.1 x − 7.916e8 x^3 + 2.061 cos(21.4t)`). Or the true model, with its damping.
+#[test]
+fn a_driven_model_without_damping_is_withheld() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "lost.csv",
+        &[
+            "eveh",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            "2.07",
+            "--rate",
+            "278",
+            "--t-end",
+            "8.11",
+            "--delta",
+            "0.05",
+            "--seed",
+            "9728",
+        ],
+    );
+    let (code, terms, _) = identify_terms(&path);
+    if code == Some(0) {
+        assert_true_model(&path);
+    } else {
+        assert!(terms.is_empty(), "{terms:?}");
+        assert_withheld(
+            &path,
+            "the model is driven but has no term in v, no damping",
+        );
+    }
+}
