@@ -80,10 +80,16 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
         ));
     }
     let mut warnings = warnings(&report);
+    let mut contradicted = None;
     let refined = match refine {
         Refine::Yes => {
             let check = refine::refine_recording(recording, &report);
             report.take_refined(&check);
+            // Judged on the refined path only: --no-refine prints the device's model as it
+            // computes it (at 10 % noise it loses the damping that refinement brings back).
+            contradicted = quality::prediction_misses(recording, &check)
+                .or_else(|| quality::unresolved_damping(&check))
+                .or_else(|| quality::undamped_forced(&report));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {
@@ -93,9 +99,11 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
     };
     // The model printed (refined or not) must be able to do what the record does: one
     // without damping cannot die out (refinement can bring a damping the streaming selection
-    // lost back, so this is judged after it).
-    if let Some(why) =
-        quality::undamped_decay(recording, &report).or_else(|| quality::unresolved_term(&report))
+    // lost back, so this is judged after it); it must predict the held-out half, and damp
+    // through a term the record resolves.
+    if let Some(why) = quality::undamped_decay(recording, &report)
+        .or_else(|| quality::unresolved_term(&report))
+        .or(contradicted)
     {
         let sentence = format!(
             "no deterministic dynamics found in {}: {why}.",

@@ -288,7 +288,9 @@ fn harvester_and_paper_recordings_still_pass() {
 
 /// A refined model printed with a term its ± does not resolve from 0 is withheld, naming the
 /// term (issue 25: a bistable harvester hopping between its wells at 5 % noise, 483 Hz, 16 s,
-/// printed `x*v^2 = 1662 ± 2190` beside the true terms; scripts/hostile-eveh.sh seed 9116).
+/// printed `x*v^2 = 1662 ± 2190` beside the true terms; scripts/hostile-eveh.sh seed 9116):
+/// since held-out windows stuck in a local minimum are fitted again, backward elimination
+/// drops that x·v² and the true model is printed, which is the other right outcome.
 #[test]
 fn a_printed_term_its_standard_error_does_not_resolve_is_withheld() {
     let dir = tempfile::tempdir().unwrap();
@@ -311,7 +313,14 @@ fn a_printed_term_its_standard_error_does_not_resolve_is_withheld() {
             "9116",
         ],
     );
-    assert_withheld(&path, "is not resolved by the record: its ± covers 0");
+    let (code, terms, stderr) = identify_terms(&path);
+    if code == Some(0) {
+        assert_true_model(&path);
+    } else {
+        assert!(terms.is_empty(), "{terms:?}");
+        assert_withheld(&path, "is not resolved by the record: its ± covers 0");
+        assert!(stderr.contains("x*v^2"), "{stderr}");
+    }
 }
 
 /// A weak damping the streaming selection took as v³ (a steady oscillation's v³ is ¾ A² v: the
@@ -365,4 +374,217 @@ fn a_damping_the_record_cannot_tell_from_v_cubed_is_printed_as_v() {
     assert_eq!(names.len(), 4, "{terms:?}");
     let v = terms[1].1;
     assert!((v / -0.4036 - 1.0).abs() < 0.25, "damping {v}");
+}
+
+/// `lssi identify --json FILE`: the exit status and the printed terms (name, coefficient).
+fn identify_terms(path: &Path) -> (Option<i32>, Vec<(String, f64)>, String) {
+    let out = Command::new(LSSI)
+        .arg("identify")
+        .arg(path)
+        .arg("--json")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let terms = serde_json::from_slice::<serde_json::Value>(&out.stdout)
+        .ok()
+        .and_then(|json| json["terms"].as_array().cloned())
+        .unwrap_or_default()
+        .iter()
+        .map(|t| {
+            (
+                t["term"].as_str().unwrap().to_owned(),
+                t["coef"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    (out.status.code(), terms, stderr)
+}
+
+/// The printed model is the truth of `lssi gen eveh` at `path` (its JSON beside): its terms
+/// and no others, coefficients within 10 %, the damping within 25 %.
+fn assert_true_model(path: &Path) {
+    let (code, terms, stderr) = identify_terms(path);
+    assert_eq!(code, Some(0), "{stderr}");
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap())
+            .unwrap();
+    let key = |name: &str| name.split('(').next().unwrap().to_owned();
+    let want: Vec<(String, f64)> = truth["terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                key(t["term"].as_str().unwrap()),
+                t["coef"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(terms.len(), want.len(), "{terms:?} against {want:?}");
+    for (name, w) in &want {
+        let (_, got) = terms
+            .iter()
+            .find(|(n, _)| key(n) == *name)
+            .unwrap_or_else(|| panic!("{name} missing from {terms:?}"));
+        let allowed = if name == "v" { 0.25 } else { 0.10 };
+        assert!(
+            (got / w - 1.0).abs() <= allowed,
+            "{name}: {got} against {w} ({terms:?})"
+        );
+    }
+}
+
+/// Refinement's held-out windows, each from its fitted state: a state fitted from the samples'
+/// guess landed in a local minimum in 7 of 12 windows for the near-true refined models of a
+/// single well driven hard (none for the streaming model), which then "predicted better" and
+/// was printed with x 36 % off and a spurious x², v², x·v² (issue 25: scripts/hostile-eveh.sh
+/// seed 9330, F = 2.91 at 238 Hz, 14.4 s, 1 % noise). Such windows are fitted again from the
+/// previous window carried on and from their first quarter: the true model.
+#[test]
+fn held_out_windows_in_a_local_minimum_do_not_pick_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "hard.csv",
+        &[
+            "eveh",
+            "--wells",
+            "monostable",
+            "--amplitude",
+            "2.91",
+            "--rate",
+            "238",
+            "--t-end",
+            "14.4",
+            "--delta",
+            "0.01",
+            "--seed",
+            "9330",
+        ],
+    );
+    assert_true_model(&path);
+}
+
+/// A damping the streaming selection took as v³ at 5 % noise on a slow double well: v is
+/// printed when the prediction does not separate it from v³ (scripts/hostile-eveh.sh seed
+/// 9213, F = 0.51 at 186 Hz, 19.4 s: printed `- 251.67 v^3`), and the model is withheld, naming
+/// both, when v and v³ refined together resolve neither and v predicts a little worse (seed
+/// 9325, F = 0.632 at 222 Hz, 6.39 s: printed `- 200.38 v^3`).
+#[test]
+fn a_damping_the_record_cannot_tell_from_v_cubed_is_not_printed_as_v_cubed() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |f: &'static str, rate: &'static str, t: &'static str, seed: &'static str| {
+        [
+            "eveh",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            f,
+            "--rate",
+            rate,
+            "--t-end",
+            t,
+            "--delta",
+            "0.05",
+            "--seed",
+            seed,
+        ]
+    };
+    let slow = generate(dir.path(), "slow.csv", &args("0.51", "186", "19.4", "9213"));
+    assert_true_model(&slow);
+    let short = generate(
+        dir.path(),
+        "short.csv",
+        &args("0.632", "222", "6.39", "9325"),
+    );
+    let (code, terms, stderr) = identify_terms(&short);
+    assert!(
+        !terms.iter().any(|(n, _)| n == "v^3"),
+        "exit {code:?}: {terms:?}"
+    );
+    if code == Some(3) {
+        assert!(
+            stderr.contains("cannot tell the model's damping from a linear one")
+                && stderr.contains("v^3 at"),
+            "{stderr}"
+        );
+    } else {
+        assert_true_model(&short);
+    }
+}
+
+/// The printed model's held-out prediction over all refinement's windows is judged against
+/// the noise in x: a near-true refined model of a single well at 1 % noise passes, and the
+/// same check with its prediction at 47 % (what the streaming model printed in issue 25
+/// had) withholds it with one sentence naming the NRMSE.
+#[test]
+fn a_printed_model_that_misses_the_held_out_half_is_withheld() {
+    use lssi_host::identify::{self, Options, quality, refine};
+    use lssi_host::synth::eveh::{EvehOptions, Wells, generate_eveh};
+    let options = EvehOptions {
+        wells: Wells::Monostable,
+        amplitude: 2.91,
+        rate: 238.0,
+        t_end: 14.4,
+        delta: 0.01,
+        seed: 9330,
+        ..EvehOptions::default()
+    };
+    let recording = generate_eveh(&options).to_recording("hard".to_owned());
+    let id_options = Options {
+        f32: true,
+        ..Options::default()
+    };
+    let report = identify::identify_recording(&recording, &id_options).unwrap();
+    let check = refine::refine_recording(&recording, &report);
+    let fit = check.prediction.unwrap();
+    assert!(fit.nrmse_percent < 5.0, "{}", check.reason);
+    assert_eq!(quality::prediction_misses(&recording, &check), None);
+    let missing = refine::Check {
+        prediction: Some(refine::Fit {
+            nrmse_percent: 47.0,
+            rms: fit.rms * 47.0 / fit.nrmse_percent,
+        }),
+        ..check
+    };
+    let why = quality::prediction_misses(&recording, &missing).unwrap();
+    assert!(why.contains("NRMSE of 47 %"), "{why}");
+}
+
+/// A driven model without damping (no term in v) is withheld, naming the lost damping: a
+/// harvester dissipates, and the selection lost the damping at 5 % noise on a short record
+/// at 278 Hz (issue 25: scripts/hostile-eveh.sh seed 9728, printed
+/// `x'' = 334.1 x − 7.916e8 x^3 + 2.061 cos(21.4t)`). Or the true model, with its damping.
+#[test]
+fn a_driven_model_without_damping_is_withheld() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "lost.csv",
+        &[
+            "eveh",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            "2.07",
+            "--rate",
+            "278",
+            "--t-end",
+            "8.11",
+            "--delta",
+            "0.05",
+            "--seed",
+            "9728",
+        ],
+    );
+    let (code, terms, _) = identify_terms(&path);
+    if code == Some(0) {
+        assert_true_model(&path);
+    } else {
+        assert!(terms.is_empty(), "{terms:?}");
+        assert_withheld(
+            &path,
+            "the model is driven but has no term in v, no damping",
+        );
+    }
 }

@@ -335,14 +335,20 @@ impl Windows {
     }
 }
 
-/// [`Windows`] of `model` on `data`, windows of `length` samples; `None` when a simulation
-/// diverges.
+/// How many times the lowest window's residual sum of squares (the noise's, for a model that
+/// follows the record) a window's may be before [`window_errors`] fits its state again from
+/// other starts.
+pub const REFIT_ABOVE_LOWEST: f64 = 2.0;
+
+/// [`Windows`] of `model` on `data`, windows of `length` samples, each from its own fitted
+/// state (the best of the samples' guess, the previous window carried on and the state fitted
+/// over the window's first quarter); `None` when a simulation diverges.
 pub fn window_errors(model: &SimModel, data: &Data, length: usize) -> Option<Windows> {
     let (shape, c) = Shape::on(model, data);
     let segs = segments(0, data.len(), length.min(data.len()));
     let s = least_squares(&shape, &c, data, &segs, true, 20, None)?;
     let mut at = 0;
-    let rss = segs
+    let mut rss: Vec<f64> = segs
         .iter()
         .map(|&(a, b)| {
             let r: f64 = s.residuals[at..at + (b - a)].iter().map(|e| e * e).sum();
@@ -350,6 +356,38 @@ pub fn window_errors(model: &SimModel, data: &Data, length: usize) -> Option<Win
             r
         })
         .collect();
+    // A window's state fitted from the samples' guess can land in a local minimum (a stiff
+    // single well driven hard, 1 % noise: a near-true model missed 7 of 12 windows by 70 %,
+    // the streaming model none, and the comparison went by whose fits landed, issue 25). Such a
+    // window is fitted again from the previous window's simulation carried on to its start,
+    // which a model that follows the record leaves near the truth, and from the state fitted
+    // over its first quarter; the best fit is kept.
+    let mut states = s.states;
+    let lowest = rss.iter().copied().fold(f64::INFINITY, f64::min);
+    for w in 0..segs.len() {
+        if !(rss[w] > REFIT_ABOVE_LOWEST * lowest) {
+            continue;
+        }
+        let (a, b) = segs[w];
+        // The starts: the previous window carried on, and the state fitted over the window's
+        // first quarter alone (a shorter stretch has fewer local minima).
+        let carried = w
+            .checked_sub(1)
+            .and_then(|p| shape.state_after(&c, data, (segs[p].0, a + 1), states[p]));
+        let quarter = ((b - a) / 4 >= 8)
+            .then(|| least_squares(&shape, &c, data, &[(a, a + (b - a) / 4)], true, 20, None))
+            .flatten()
+            .map(|q| q.states[0]);
+        for start in [carried, quarter].into_iter().flatten() {
+            if let Some(again) =
+                least_squares(&shape, &c, data, &[(a, b)], true, 20, Some(vec![start]))
+                && again.rss < rss[w]
+            {
+                rss[w] = again.rss;
+                states[w] = again.states[0];
+            }
+        }
+    }
     let n = data.len().max(1) as f64;
     let mean = data.x.iter().sum::<f64>() / n;
     let sd = (data.x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();

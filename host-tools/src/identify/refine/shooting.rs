@@ -178,6 +178,20 @@ impl Shape {
         out: &mut [f64],
     ) -> bool {
         self.step_through(c, data, span, start, out, 0, None)
+            .is_some()
+    }
+
+    /// The state (x, x') at the last sample of `span` (recording coordinates) of a simulation
+    /// from `start` at its first: `None` when the state left the finite numbers.
+    pub(crate) fn state_after(
+        &self,
+        c: &[f64],
+        data: &Data,
+        span: (usize, usize),
+        start: (f64, f64),
+    ) -> Option<(f64, f64)> {
+        let mut out = vec![0.0; span.1.saturating_sub(span.0).max(1)];
+        self.step_through(c, data, span, start, &mut out, 0, None)
     }
 
     /// [`Shape::simulate`], and beside x its derivatives with respect to the first `k`
@@ -198,6 +212,7 @@ impl Shape {
         sens: &mut [f64],
     ) -> bool {
         self.step_through(c, data, span, start, out, k, Some(sens))
+            .is_some()
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -210,7 +225,7 @@ impl Shape {
         out: &mut [f64],
         k: usize,
         mut sens: Option<&mut [f64]>,
-    ) -> bool {
+    ) -> Option<(f64, f64)> {
         let substeps = self.substeps.clamp(1, MAX_SUBSTEPS);
         let (a, b) = span;
         let [ox, ov] = self.offsets;
@@ -323,11 +338,11 @@ impl Shape {
                 }
             }
             if !(x.is_finite() && v.is_finite()) {
-                return false;
+                return None;
             }
             out[i + 1 - a] = x + ox;
         }
-        true
+        Some((x + ox, v + ov))
     }
 }
 
