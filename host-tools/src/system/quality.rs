@@ -27,10 +27,9 @@
 //!    and a model with V, x and v conditioned 360–380 predicts the record within 1 % (`lssi
 //!    gen piezo --observe v`, `lssi gen electromagnetic --delta 0.01 --observe v`, seed 1:
 //!    the seeds the threshold was set on; the figures are on others).
-//! 6. **A harvester's coupling acts both ways** ([`coupling_both_ways`]).
-//! 6a. **An electrical channel proportional to the velocity** has no dynamics of its own
-//!    ([`electrical_follows_velocity`]).
-//! 6b. **A harvester's mechanical damping is there beside its coupling**
+//! 6. **An electrical channel proportional to the velocity** has no dynamics of its own
+//!    ([`electrical_follows_velocity`]); else **a harvester's coupling acts both ways**
+//!    ([`coupling_both_ways`]), and **its beam's damping is there beside its coupling**
 //!    ([`damping_beside_coupling`]).
 //! 7. **Each electrical equation's terms are determined** ([`undetermined_electrical_terms`]):
 //!    in an electrical equation holding the excitation's harmonics, refitted on the record
