@@ -1,6 +1,7 @@
 """A harvester's system (a recording with an electrical column V): `lssi.identify` gives the
 model `lssi identify --json` prints, and `Model.simulate` runs it from named states."""
 import json
+import subprocess
 
 import numpy as np
 import pytest
@@ -96,7 +97,18 @@ def test_every_piezo_variant_equals_the_command(cli, tmp_path, wells, observe):
     system as `lssi identify --json`, and a free run of every state over t."""
     path = tmp_path / f"piezo-{wells}-{observe}.csv"
     cli("gen", "piezo", "--input", "--wells", wells, "--observe", observe, path)
-    expected = cli("identify", path, "--json", "--f64").strip()
+    command = subprocess.run([str(LSSI), "identify", str(path), "--json", "--f64"],
+                             capture_output=True, text=True)
+    if command.returncode == 3:
+        # Withheld by the command's gate (v alone, bistable: x'' trades the damping for the
+        # coupling): the package raises the command's sentence.
+        reason = command.stderr.strip().split(": ", 2)[-1]
+        with pytest.raises(ValueError, match="no deterministic dynamics found") as e:
+            lssi.identify(path)
+        assert str(e.value).endswith(reason)
+        return
+    assert command.returncode == 0, command.stderr
+    expected = command.stdout.strip()
     m = lssi.identify(path)
     assert m.to_json() == expected
     assert list(m.equations()) == ["x''", "V'"]
