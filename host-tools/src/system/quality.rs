@@ -848,8 +848,8 @@ pub fn electrical_follows_velocity(
     None
 }
 
-/// See [`assess`]: a displacement's equation holding the coupling (V or i) but no term in its
-/// own velocity. Every harvester's beam loses energy to its own damping beside what the
+/// See [`assess`]: a displacement's equation holding the coupling (V or i) but no linear term
+/// in its own velocity. Every harvester's beam loses energy to its own damping beside what the
 /// transducer takes, and under a single forcing tone in steady state the electrical state is
 /// nearly a lagged copy of v (exactly proportional to v for an electromagnetic coil of
 /// negligible inductance), so a selection can trade the damping −c v for an inflated χV: the
@@ -877,7 +877,11 @@ pub fn damping_beside_coupling(
             })
             .collect();
         let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
-        let damped = live.iter().any(|q| q[velocity] > 0);
+        // A beam's damping is viscous: a term in v itself (x²·v, v³ beside it are nonlinear
+        // damping; alone they were the selection's stand-in for a lost −c v).
+        let damped = live
+            .iter()
+            .any(|q| q[velocity] == 1 && q.iter().sum::<u8>() == 1);
         if !coupled || damped {
             continue;
         }
