@@ -530,22 +530,41 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
 /// [`undamped_decay`] (the mirror of [`crate::identify::sweep::GROWS`]).
 pub const DECAYS: f64 = 1.25;
 
+/// What the printed model's active terms hold: a forcing (sin/cos(kΩt) or u), a term in v (a
+/// damping), a restoring term in x alone, and any term at all.
+struct Holds {
+    driven: bool,
+    damped: bool,
+    restoring: bool,
+    any: bool,
+}
+
+impl Holds {
+    fn of(report: &Report) -> Self {
+        use lssi_core::Term;
+        let mut h = Holds {
+            driven: false,
+            damped: false,
+            restoring: false,
+            any: false,
+        };
+        for (t, _) in report.model.iter().filter(|(_, c)| *c != 0.0) {
+            h.any = true;
+            h.driven |= matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input);
+            h.damped |= matches!(t, Term::Monomial { pv, .. } if *pv > 0);
+            h.restoring |= matches!(t, Term::Monomial { px, pv: 0 } if *px > 0);
+        }
+        h
+    }
+}
+
 /// Whether x's oscillation dies out over the record while the model, without forcing, has
 /// no term in v: x'' = f(x) keeps its energy and cannot decay, so its damping was lost (at
 /// high noise over a short ringdown the streaming selection drops a weak damping and the
 /// model follows the record over a few periods all the same). The sentence, or `None`.
 pub fn undamped_decay(recording: &Recording, report: &Report) -> Option<String> {
-    use lssi_core::Term;
-    let active = || {
-        report
-            .model
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .map(|(t, _)| *t)
-    };
-    let driven = active().any(|t| matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input));
-    let damped = active().any(|t| matches!(t, Term::Monomial { pv, .. } if pv > 0));
-    if driven || damped || active().next().is_none() {
+    let h = Holds::of(report);
+    if h.driven || h.damped || !h.any {
         return None;
     }
     let scan = Scan::of(recording);
@@ -577,18 +596,8 @@ pub fn undamped_decay(recording: &Recording, report: &Report) -> Option<String> 
 /// errors from 0 but did not predict the held-out half better by the paired test). The
 /// sentence, or `None`.
 pub fn undamped_forced(report: &Report) -> Option<String> {
-    use lssi_core::Term;
-    let active = || {
-        report
-            .model
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .map(|(t, _)| *t)
-    };
-    let driven = active().any(|t| matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input));
-    let damped = active().any(|t| matches!(t, Term::Monomial { pv, .. } if pv > 0));
-    let restoring = active().any(|t| matches!(t, Term::Monomial { px, pv: 0 } if px > 0));
-    (driven && restoring && !damped).then(|| {
+    let h = Holds::of(report);
+    (h.driven && h.restoring && !h.damped).then(|| {
         "the model is driven but has no term in v, no damping: a harvester dissipates, and a driven model without damping cannot settle to the steady oscillation of a forced record, so the damping was lost at this noise and length, not found absent (a longer or less noisy record)".to_owned()
     })
 }

@@ -641,6 +641,48 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     q
 }
 
+/// An equation's active terms (non-zero coefficients).
+fn active(eq: &[(SimTerm, f64)]) -> Vec<SimTerm> {
+    eq.iter()
+        .filter(|(_, c)| *c != 0.0)
+        .map(|(t, _)| *t)
+        .collect()
+}
+
+/// An equation's active monomials, as exponents over the simulator's state (x, v, e₁, e₂,
+/// x2, v2).
+fn active_monomials(eq: &[(SimTerm, f64)]) -> Vec<[u8; 6]> {
+    active(eq)
+        .into_iter()
+        .filter_map(|t| match t {
+            SimTerm::Monomial(m) => Some(m),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The state in `slot` of the simulator's state as a term (x, v, e₁, … to the first power).
+fn state_term(slot: usize) -> SimTerm {
+    let mut state = [0u8; 6];
+    state[slot] = 1;
+    SimTerm::Monomial(state)
+}
+
+/// Equation `m` refitted by least squares with its active terms and `extra`
+/// ([`super::report::refit`]): `extra`'s coefficient and standard error.
+fn refit_with(
+    sim: &SystemSim,
+    report: &SystemReport,
+    data: &SystemData,
+    m: usize,
+    extra: SimTerm,
+) -> Option<(f64, f64)> {
+    let mut terms = active(&sim.equations[m]);
+    terms.push(extra);
+    let (beta, se) = super::report::refit(report.sample_period, data, m, &terms)?;
+    Some((*beta.last()?, *se.last()?))
+}
+
 /// An electrical equation's term is undetermined when, refitted by least squares with the
 /// equation's other terms on the record ([`super::report::refit`]), or as the report gives it
 /// (a refined model's standard errors), it is within this many standard errors of 0.
@@ -660,11 +702,7 @@ pub fn undetermined_electrical_terms(
 ) -> Option<String> {
     let mut found = Vec::new();
     for (k, eq) in sim.equations.iter().enumerate().skip(1).take(2) {
-        let terms: Vec<SimTerm> = eq
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .map(|(t, _)| *t)
-            .collect();
+        let terms = active(eq);
         // Only an equation driven by the excitation's harmonics, as a circuit is not (the
         // excitation reaches it through the motion): there the steady state's sinusoid makes
         // the spurious combinations (a real record's small constant or input terms elsewhere
@@ -729,49 +767,29 @@ pub fn coupling_both_ways(
     report: &SystemReport,
     data: &SystemData,
 ) -> Option<String> {
-    let live = |eq: &Vec<(SimTerm, f64)>| -> Vec<[u8; 6]> {
-        eq.iter()
-            .filter(|(_, c)| *c != 0.0)
-            .filter_map(|(t, _)| match t {
-                SimTerm::Monomial(m) => Some(*m),
-                _ => None,
-            })
-            .collect()
-    };
     let d = sim.displacements;
     // Every displacement's equation: a coupling term in any of them answers the check.
     if sim
         .equations
         .iter()
         .take(d)
-        .any(|eq| live(eq).iter().any(|m| m[2] > 0 || m[3] > 0))
+        .any(|eq| active_monomials(eq).iter().any(|m| m[2] > 0 || m[3] > 0))
     {
         return None;
     }
     for (k, eq) in sim.equations.iter().enumerate().skip(d).take(2) {
-        let moved = live(eq)
+        let moved = active_monomials(eq)
             .iter()
             .any(|m| (m[0] > 0 || m[1] > 0 || m[4] > 0 || m[5] > 0) && m[2] == 0 && m[3] == 0);
         if !moved {
             continue;
         }
-        let mut state = [0u8; 6];
-        state[2 + k - d] = 1;
-        let name = SimTerm::Monomial(state).name_in(&sim.electrical, d);
+        let coupling = state_term(2 + k - d);
+        let name = coupling.name_in(&sim.electrical, d);
         // The mechanical equation the refitted coupling is strongest in.
         let mut best: Option<(f64, f64, f64, usize)> = None;
         for m in 0..d {
-            let mut terms: Vec<SimTerm> = sim.equations[m]
-                .iter()
-                .filter(|(_, c)| *c != 0.0)
-                .map(|(t, _)| *t)
-                .collect();
-            terms.push(SimTerm::Monomial(state));
-            let Some((beta, se)) = super::report::refit(report.sample_period, data, m, &terms)
-            else {
-                continue;
-            };
-            let (Some(&b), Some(&e)) = (beta.last(), se.last()) else {
+            let Some((b, e)) = refit_with(sim, report, data, m, coupling) else {
                 continue;
             };
             let t = b.abs() / e;
@@ -836,9 +854,7 @@ pub fn electrical_follows_velocity(
         if !(nrmse <= PROPORTIONAL_NRMSE) {
             continue;
         }
-        let mut velocity = [0u8; 6];
-        velocity[1] = 1;
-        let v = SimTerm::Monomial(velocity).name_in(&sim.electrical, d);
+        let v = state_term(1).name_in(&sim.electrical, d);
         let name = e.kind.symbol();
         return Some(format!(
             "{name} is proportional to {v} on this recording ({name} = ({c:.4e} ± {se:.1e}) {v}, within {:.1} % of {name}'s RMS), as across a coil of negligible inductance: {name} has no dynamics of its own for an equation {name}' to identify, and x'' cannot part the beam's damping from the coupling (only their sum acts); the harvester's electrical equation is that proportion, and its x'' the single equation `lssi identify` gives without the {name} column",
@@ -868,14 +884,7 @@ pub fn damping_beside_coupling(
     for m in 0..d {
         // The velocity's slot in the simulator's state (x, v, e1, e2, x2, v2).
         let velocity = if m == 0 { 1 } else { 5 };
-        let live: Vec<[u8; 6]> = sim.equations[m]
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .filter_map(|(t, _)| match t {
-                SimTerm::Monomial(q) => Some(*q),
-                _ => None,
-            })
-            .collect();
+        let live = active_monomials(&sim.equations[m]);
         let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
         // A beam's damping is viscous: a term in v itself (x²·v, v³ beside it are nonlinear
         // damping; alone they were the selection's stand-in for a lost −c v).
@@ -885,9 +894,7 @@ pub fn damping_beside_coupling(
         if !coupled || damped {
             continue;
         }
-        let mut state = [0u8; 6];
-        state[velocity] = 1;
-        let v = SimTerm::Monomial(state).name_in(&sim.electrical, d);
+        let v = state_term(velocity).name_in(&sim.electrical, d);
         let target = report.equations.get(m).map_or("x''", |e| e.target.as_str());
         let coupling: Vec<String> = live
             .iter()
@@ -898,14 +905,7 @@ pub fn damping_beside_coupling(
                     .to_string()
             })
             .collect();
-        let mut terms: Vec<SimTerm> = sim.equations[m]
-            .iter()
-            .filter(|(_, c)| *c != 0.0)
-            .map(|(t, _)| *t)
-            .collect();
-        terms.push(SimTerm::Monomial(state));
-        let refitted = super::report::refit(report.sample_period, data, m, &terms)
-            .and_then(|(beta, se)| Some((*beta.last()?, *se.last()?)))
+        let refitted = refit_with(sim, report, data, m, state_term(velocity))
             .filter(|(b, e)| b.is_finite() && e.is_finite() && *e > 0.0);
         let coupling = coupling.join(", ");
         return Some(match refitted {
