@@ -16,7 +16,9 @@
 //!   (the free run's transient left out);
 //! - the predicted mean power against the load, λ(R′) = 1/(R′ C_p) and κ unchanged, and the
 //!   optimal load; and against the forcing frequency (the harmonics' Ω scaled, or u replaced
-//!   by a tone of u's RMS at that frequency).
+//!   by a tone of u's RMS at that frequency, from half to one and a half times u's strongest
+//!   line); both only when the free run's power at the recorded load is within
+//!   [`MAX_POWER_MISS`] of the measured one (else a note gives the miss).
 //!
 //! With the electromagnetic form (a magnet in a coil of resistance R_c and inductance L
 //! across the load R: m x'' + … + Φ i = F, L i' + (R_c + R) i − Φ x' = 0), recorded as the
@@ -109,6 +111,17 @@ pub struct Harvester {
     pub frequency_sweep: Vec<PowerPoint>,
     /// What could not be computed and why.
     pub notes: Vec<String>,
+}
+
+/// The largest relative miss of the measured mean power at the recorded load that the free
+/// run may make before the power against load and frequency is withheld.
+pub const MAX_POWER_MISS: f64 = 0.25;
+
+/// The free run's relative miss of the measured power (`predicted / measured − 1`) when it is
+/// over [`MAX_POWER_MISS`]; `None` when within it (or nothing was predicted).
+fn power_miss(measured: f64, predicted: Option<f64>) -> Option<f64> {
+    let miss = predicted? / measured - 1.0;
+    (!(miss.abs() <= MAX_POWER_MISS) && measured > 0.0).then_some(miss)
 }
 
 /// The coefficient of `term` in equation `k` (0 when absent).
@@ -357,8 +370,23 @@ pub fn harvester(
     };
     h.power_predicted_w = power_of(&sim, &u, ohms);
     if h.power_predicted_w.is_none() {
-        h.notes
-            .push("the free run at the recorded load diverged".into());
+        h.notes.push(
+            "the free run at the recorded load diverged, so no power against load or frequency"
+                .into(),
+        );
+        return h;
+    }
+    // The sweeps are the free run at other loads and frequencies: when it misses the one
+    // power the record measures, at the recorded load, they are not to be trusted.
+    if let Some(miss) = power_miss(h.power_measured_w, h.power_predicted_w) {
+        h.notes.push(format!(
+            "no power against load or frequency: at the recorded load the free run's mean power {} W misses the measured {} W by {:+.0} % (more than {:.0} %), so the model's power at other loads and frequencies is not to be trusted",
+            super::report::number(h.power_predicted_w.unwrap_or(f64::NAN)),
+            super::report::number(h.power_measured_w),
+            100.0 * miss,
+            100.0 * MAX_POWER_MISS
+        ));
+        return h;
     }
     // The model at another load: λ, κ and χ scaled as the circuit says.
     let at_load = |load: f64| -> Option<SystemSim> {
@@ -438,11 +466,21 @@ pub fn harvester(
         .iter()
         .flatten()
         .any(|(t, _)| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_)));
-    if report.omega > 0.0 && (has_harmonics || sim.uses_input()) {
+    // The forcing's frequency: Ω of the harmonics, else the measured u's strongest line (Ω
+    // is not estimated when u is the forcing: its placeholder would centre the sweep on
+    // 1 rad/s).
+    let forcing = if has_harmonics {
+        Some(report.omega)
+    } else {
+        crate::identify::refine::mean_period_samples(&u)
+            .map(|p| std::f64::consts::TAU / (p * report.sample_period))
+    }
+    .filter(|w| w.is_finite() && *w > 0.0);
+    if let Some(omega) = forcing.filter(|_| has_harmonics || sim.uses_input()) {
         let amplitude = std::f64::consts::SQRT_2 * rms(&u);
         for k in 0..=20 {
             let scale = 0.5 + 0.05 * f64::from(k);
-            let w = report.omega * scale;
+            let w = omega * scale;
             let mut model = sim.clone();
             for (t, _) in model.equations.iter_mut().flatten() {
                 match t {
@@ -572,5 +610,26 @@ impl Harvester {
             out.push_str(&format!("  note: {note}\n"));
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{MAX_POWER_MISS, power_miss};
+
+    #[test]
+    fn a_free_run_that_misses_the_measured_power_is_named_with_its_miss() {
+        // Within the limit either way: the sweeps are kept.
+        assert_eq!(power_miss(1.0, Some(1.0 + 0.9 * MAX_POWER_MISS)), None);
+        assert_eq!(power_miss(1.0, Some(1.0 - 0.9 * MAX_POWER_MISS)), None);
+        // Beyond it either way: the miss, signed.
+        let over = power_miss(2.0, Some(3.62)).unwrap();
+        assert!((over - 0.81).abs() < 1e-12, "{over}");
+        let under = power_miss(2.0, Some(0.5)).unwrap();
+        assert!((under + 0.75).abs() < 1e-12, "{under}");
+        // A non-finite prediction is a miss; nothing predicted, or nothing measured, is not.
+        assert!(power_miss(1.0, Some(f64::NAN)).is_some());
+        assert_eq!(power_miss(1.0, None), None);
+        assert_eq!(power_miss(0.0, Some(1.0)), None);
     }
 }

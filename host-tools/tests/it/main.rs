@@ -36,6 +36,7 @@ mod sweep;
 mod system;
 mod system_gate;
 mod system_load;
+mod system_power;
 mod system_terms;
 mod telemetry_fuzz;
 mod time_axis;
