@@ -358,7 +358,9 @@ fn header_hint(column: &str, found: &[String]) -> Option<String> {
             ));
         }
     }
-    let other = found.iter().find(|f| f.eq_ignore_ascii_case(column))?;
+    let Some(other) = found.iter().find(|f| f.eq_ignore_ascii_case(column)) else {
+        return unit_suffix_hint(column, found);
+    };
     // Every default name the header has in another case: all the options needed at once.
     let flags: Vec<String> = ["t", "x", "v", "u"]
         .iter()
@@ -378,6 +380,28 @@ fn header_hint(column: &str, found: &[String]) -> Option<String> {
     Some(format!(
         "column '{other}' differs only in case (names are case-sensitive): give {give}"
     ))
+}
+
+/// A hint for a header whose names carry units or words (`t_s`, `time`, `x [mm]`,
+/// `base_acc_g`): the column that looks like `column` (its name, then `_`, a space, `(` or
+/// `[`; or `time…` for `t`) as the option to give, and the options naming the channels.
+fn unit_suffix_hint(column: &str, found: &[String]) -> Option<String> {
+    let looks_like = |f: &&String| {
+        let lower = f.to_ascii_lowercase();
+        lower
+            .strip_prefix(column)
+            .is_some_and(|rest| rest.starts_with(['_', ' ', '(', '[']))
+            || (column == "t" && lower.starts_with("time"))
+    };
+    if !["t", "x", "v", "u"].contains(&column) {
+        return None;
+    }
+    let flag = format!("--{column}-col");
+    let channels = "name the motion's column with --x-col or --v-col, a measured excitation's with --u-col, and the load's voltage or current with --V-col or --i-col";
+    Some(match found.iter().find(looks_like) {
+        Some(name) => format!("if '{name}' is {column}, give {flag} {name}; {channels}"),
+        None => channels.to_owned(),
+    })
 }
 
 /// The sentence of [`RecordingError::Ragged`].

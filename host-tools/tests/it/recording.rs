@@ -61,10 +61,42 @@ fn missing_column_lists_the_header() {
     assert_eq!(
         message,
         format!(
-            "{}: no column named 'x' in the header (found: time, pos).",
+            "{}: no column named 'x' in the header (found: time, pos); name the motion's \
+             column with --x-col or --v-col, a measured excitation's with --u-col, and the \
+             load's voltage or current with --V-col or --i-col.",
             shown(&path)
         )
     );
+}
+
+#[test]
+fn a_header_with_units_in_its_names_gets_the_option_to_give() {
+    // BistableX's header, as its recordings come.
+    let (message, path, _dir) =
+        error("t_s,base_acc_g,piezo_voltage_V_raw,vibrometer_velocity_V_raw\n0,1,2,3\n");
+    assert_eq!(
+        message,
+        format!(
+            "{}: no column named 't' in the header (found: t_s, base_acc_g, piezo_voltage_V_raw, \
+             vibrometer_velocity_V_raw); if 't_s' is t, give --t-col t_s; name the motion's \
+             column with --x-col or --v-col, a measured excitation's with --u-col, and the \
+             load's voltage or current with --V-col or --i-col.",
+            shown(&path)
+        )
+    );
+    for (header, name) in [("Time (s),x\n", "Time (s)"), ("time,x\n", "time")] {
+        let (message, _path, _dir) = error(&format!("{header}0,1\n"));
+        assert!(
+            message.contains(&format!("give --t-col {name};")),
+            "{message}"
+        );
+    }
+    let columns = ColumnNames {
+        t: "time".into(),
+        ..ColumnNames::default()
+    };
+    let (message, _path, _dir) = error_with("time,x [mm],u\n0,1,2\n", &columns);
+    assert!(message.contains("give --x-col x [mm];"), "{message}");
 }
 
 #[test]
