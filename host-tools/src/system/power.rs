@@ -300,6 +300,14 @@ pub fn harvester(
     let r = &data.recording;
     let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;
     let span = 4.0 * rms(&r.x.iter().map(|q| q - mean_x).collect::<Vec<_>>());
+    // The physical reading assumes a beam that dissipates: x'' ∋ −c v with c ≥ 0.
+    let damping = coefficient(&sim, 0, v_term);
+    if damping > 0.0 {
+        h.notes.push(format!(
+            "x'' has a negative damping (+{} v), which a passive harvester's beam does not have: unless it is self-excited (galloping, flutter), check that x and v are relative to the base (an absolute velocity, as a vibrometer measures, is not), and read the constants above as the formulas' values only",
+            super::report::number(damping)
+        ));
+    }
     if let Some((x_eq, k)) = stable_equilibrium(&sim, mean_x, span) {
         h.equilibrium = Some(x_eq);
         h.stiffness_per_mass = Some(k);

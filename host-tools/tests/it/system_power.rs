@@ -59,3 +59,80 @@ fn the_power_against_frequency_is_centred_on_the_measured_forcing() {
         );
     }
 }
+
+/// `lssi gen piezo --input --observe xv` (x and v relative to the base, as the equation has
+/// them), its text report with `--load-ohms`.
+fn report(path: &std::path::Path) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .arg("identify")
+        .arg(path)
+        .args(["--load-ohms", "1e5", "--no-refine"])
+        .output()
+        .unwrap();
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn a_negative_damping_is_named_in_the_harvester_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("relative.csv");
+    let o = Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args([
+            "gen",
+            "piezo",
+            "--input",
+            "--observe",
+            "xv",
+            "--delta",
+            "0.01",
+        ])
+        .args(["--t-end", "10", "--seed", "5"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let relative = report(&path);
+    assert!(!relative.contains("negative damping"), "{relative}");
+    // The same beam seen as a vibrometer sees it: x and v absolute (the base's motion, u
+    // integrated with its mean and drift removed, added).
+    let text = std::fs::read_to_string(&path).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (t, x, v, u) = (col("t"), col("x"), col("v"), col("u"));
+    let integrate = |s: &[f64]| -> Vec<f64> {
+        let mut out = vec![0.0; s.len()];
+        for i in 1..s.len() {
+            out[i] = out[i - 1] + 0.5 * (rows[i][t] - rows[i - 1][t]) * (s[i] + s[i - 1]);
+        }
+        let mean = out.iter().sum::<f64>() / out.len() as f64;
+        out.iter().map(|q| q - mean).collect()
+    };
+    let base_v = integrate(&rows.iter().map(|r| r[u]).collect::<Vec<_>>());
+    let base_x = integrate(&base_v);
+    let mut absolute = format!("{}\n", header.join(","));
+    for (i, r) in rows.iter().enumerate() {
+        let mut r = r.clone();
+        r[x] += base_x[i];
+        r[v] += base_v[i];
+        let fields: Vec<String> = r.iter().map(|q| format!("{q:e}")).collect();
+        absolute.push_str(&fields.join(","));
+        absolute.push('\n');
+    }
+    let path = dir.path().join("absolute.csv");
+    std::fs::write(&path, absolute).unwrap();
+    let absolute = report(&path);
+    assert!(
+        absolute.contains("x'' has a negative damping")
+            && absolute.contains("check that x and v are relative to the base"),
+        "{absolute}"
+    );
+}
