@@ -87,7 +87,19 @@ fn python_words(message: &str) -> String {
         ("--load-ohms", "load_ohms"),
         ("--coupling-order", "coupling_order"),
     ];
-    let mut out = message.to_string();
+    // A header's hint names the command's column options, which Python has not got: the
+    // columns are renamed instead.
+    let message = match message
+        .find("; if '")
+        .or_else(|| message.find("; name the motion's"))
+    {
+        Some(at) if message.contains("--x-col or --v-col") => format!(
+            "{}; rename the file's columns to t, x or v, u, and V or i (or read it with pandas, rename them and pass the DataFrame).",
+            &message[..at]
+        ),
+        _ => message.to_string(),
+    };
+    let mut out = message;
     for (flag, argument) in FLAGS {
         out = out.replace(flag, argument);
     }

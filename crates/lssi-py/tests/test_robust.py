@@ -207,6 +207,20 @@ def test_errors_name_python_arguments_not_flags():
     assert "--" not in str(e.value)
 
 
+
+def test_a_header_with_units_is_renamed_not_given_flags(tmp_path):
+    # BistableX's header as its recordings come: the command's hint names --t-col, which
+    # Python has not got.
+    path = tmp_path / "raw.csv"
+    path.write_text("t_s,base_acc_g,piezo_voltage_V_raw,vibrometer_velocity_V_raw\n"
+                    + "".join(f"{i / 100},0,0,0\n" for i in range(300)))
+    for call in (lssi.identify, lssi.read_recording):
+        with pytest.raises(ValueError) as e:
+            call(path)
+        message = str(e.value)
+        assert "no column named 't'" in message and "rename the file's columns" in message
+        assert "--" not in message, message
+
 # -- pickling ----------------------------------------------------------------------------
 @pytest.mark.parametrize("refine", [True, False])
 def test_a_fitted_model_pickles(refine):
