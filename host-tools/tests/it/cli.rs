@@ -1,15 +1,8 @@
 //! The `lssi` binary: exit codes and the messages a person sees.
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
+use crate::common::lssi;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()

@@ -3,15 +3,9 @@
 //! what failed.
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
+use crate::common::lssi;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn arg(path: &Path) -> &str {
     path.to_str().unwrap()

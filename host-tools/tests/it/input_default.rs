@@ -7,16 +7,10 @@
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
+use crate::common::lssi;
 use serde_json::Value;
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn generate(dir: &Path, name: &str, args: &[&str]) -> String {
     let path = dir.join(name);

@@ -4,20 +4,13 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::Path;
-use std::process::{Command, Output};
 
+use crate::common::lssi;
 use lssi_host::telemetry::{RecordKind, TelemetryLog, encode_record};
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, MAX_FRAME_LEN, ModelSnapshot, NakReason, PROTOCOL_VERSION,
     SnapshotCause, SolutionSummary, TermCode, TermKind, encode,
 };
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 /// A frame as the link logs it: COBS bytes without the delimiter.
 fn frame(message: &DeviceMsg) -> Vec<u8> {

@@ -6,6 +6,7 @@ mod bundled;
 mod classes;
 mod clean_failures;
 mod cli;
+mod common;
 mod eveh;
 mod failures_cli;
 mod gate;

@@ -6,22 +6,15 @@
 #![allow(clippy::unwrap_used)]
 
 use std::io::{Read, Write};
-use std::process::{Command, Output};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use crate::common::lssi;
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_FRAME_LEN, NakReason,
     WireConfig, WireDrift, encode,
 };
 use serialport::SerialPort;
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn health(drift: Option<WireDrift>) -> DeviceMsg {
     DeviceMsg::Health {

@@ -6,16 +6,9 @@
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::path::Path;
-use std::process::{Command, Output};
 
+use crate::common::lssi;
 use serde_json::Value;
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn generate(args: &[&str], out: &Path) {
     let mut all = vec!["gen"];

@@ -7,16 +7,9 @@
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::path::Path;
-use std::process::{Command, Output};
 
+use crate::common::lssi;
 use serde_json::Value;
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 /// `lssi gen electromagnetic ARGS OUT.csv` (a bistable beam, a slow coil: L = 100 H, so that
 /// i is not a copy of v), and its truth.
