@@ -739,13 +739,19 @@ pub fn assess(
         .model
         .iter()
         .any(|(t, c)| *c != 0.0 && matches!(t, lssi_core::Term::Sin(_) | lssi_core::Term::Cos(_)));
+    // A model without forcing whose free run cannot follow the record is a reason too: a
+    // constant-amplitude chirp (1→10 Hz, no dynamics) was printed as a double well once the
+    // short-horizon windows were fitted from several starts (each window alone follows).
+    let follows = std::cell::OnceCell::new();
+    let follows =
+        || *follows.get_or_init(|| crate::identify::sweep::model_follows(recording, report));
     if recording.u.is_none()
         && (forced
             || !quality.failures.is_empty()
             || crate::identify::sweep::grows(recording)
-            || crate::identify::sweep::outlasts_model(recording, report) == Some(true))
-        && !(quality.failures.is_empty()
-            && crate::identify::sweep::model_follows(recording, report) == Some(true))
+            || crate::identify::sweep::outlasts_model(recording, report) == Some(true)
+            || follows() == Some(false))
+        && !(quality.failures.is_empty() && follows() == Some(true))
         && let Some(sweep) = crate::identify::sweep::sweep(recording)
     {
         quality.failures = vec![sweep.sentence()];
