@@ -739,9 +739,11 @@ pub fn assess(
         .model
         .iter()
         .any(|(t, c)| *c != 0.0 && matches!(t, lssi_core::Term::Sin(_) | lssi_core::Term::Cos(_)));
-    // A model without forcing whose free run cannot follow the record is a reason too: a
+    // A model whose free run cannot follow a record that keeps its amplitude is a reason too
+    // (an oscillator without forcing keeps its frequency while it keeps its energy): a
     // constant-amplitude chirp (1→10 Hz, no dynamics) was printed as a double well once the
-    // short-horizon windows were fitted from several starts (each window alone follows).
+    // short-horizon windows were fitted from several starts (each window alone follows). Not
+    // a ringdown, whose frequency drifts as it dies out.
     let follows = std::cell::OnceCell::new();
     let follows =
         || *follows.get_or_init(|| crate::identify::sweep::model_follows(recording, report));
@@ -750,7 +752,7 @@ pub fn assess(
             || !quality.failures.is_empty()
             || crate::identify::sweep::grows(recording)
             || crate::identify::sweep::outlasts_model(recording, report) == Some(true)
-            || follows() == Some(false))
+            || (follows() == Some(false) && crate::identify::sweep::keeps_amplitude(recording)))
         && !(quality.failures.is_empty() && follows() == Some(true))
         && let Some(sweep) = crate::identify::sweep::sweep(recording)
     {

@@ -525,5 +525,28 @@ pub fn grows(recording: &Recording) -> bool {
     rms(&x[x.len() - quarter..]) > GROWS * rms(&x[..quarter])
 }
 
+/// Whether x keeps its oscillation over the record: its RMS about its mean over the last
+/// quarter of the longest clean stretch at least [`KEEPS`] times over the first quarter.
+pub fn keeps_amplitude(recording: &Recording) -> bool {
+    let scan = Scan::of(recording);
+    let Some(stretch) = scan.stretches().into_iter().max_by_key(|r| r.len()) else {
+        return false;
+    };
+    let x = &recording.x[stretch];
+    let quarter = x.len() / 4;
+    if quarter < 16 {
+        return false;
+    }
+    let rms = |s: &[f64]| {
+        let mean = s.iter().sum::<f64>() / s.len() as f64;
+        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    rms(&x[x.len() - quarter..]) >= KEEPS * rms(&x[..quarter])
+}
+
+/// The share of its first quarter's oscillation x must keep over its last for
+/// [`keeps_amplitude`].
+pub const KEEPS: f64 = 0.9;
+
 /// How much more x must oscillate over its last quarter than its first for [`grows`].
 pub const GROWS: f64 = 1.25;
