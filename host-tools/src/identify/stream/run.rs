@@ -178,6 +178,9 @@ pub(super) fn run(
     })
 }
 
+/// A repaired spike's measured value and its channel's name.
+type Spike = (f64, &'static str);
+
 /// The spike rule on a stream: samples go through a run of seven; the middle one is a spike
 /// when its cubic residual r (against its four neighbours) is beyond the channel's limit and
 /// [`crate::identify::blemish::SPIKE_DOMINANCE`] times its neighbours' r, all seven finite and
@@ -189,7 +192,7 @@ struct SpikeRepair {
     /// The channels' names ("x", then "v" and "u" when measured).
     names: Vec<&'static str>,
     /// Repaired spikes still in the run: (index, (measured value, channel)).
-    judged: Vec<(usize, (f64, &'static str))>,
+    judged: Vec<(usize, Spike)>,
 }
 
 impl SpikeRepair {
@@ -225,7 +228,7 @@ impl SpikeRepair {
         &mut self,
         i: usize,
         s: Sample,
-    ) -> Option<(usize, Sample, Option<(f64, &'static str)>)> {
+    ) -> Option<(usize, Sample, Option<Spike>)> {
         self.run.push_back((i, s));
         let mut spike = None;
         if self.run.len() == 7 && self.dt > 0.0 {
