@@ -224,11 +224,7 @@ impl SpikeRepair {
 
     /// Takes sample `i`; gives back the sample leaving the run (its index, the sample,
     /// and the spike's measured value and channel when it was repaired).
-    fn push(
-        &mut self,
-        i: usize,
-        s: Sample,
-    ) -> Option<(usize, Sample, Option<Spike>)> {
+    fn push(&mut self, i: usize, s: Sample) -> Option<(usize, Sample, Option<Spike>)> {
         self.run.push_back((i, s));
         let mut spike = None;
         if self.run.len() == 7 && self.dt > 0.0 {
