@@ -114,7 +114,8 @@ pub struct Blemish {
     pub rows: usize,
     /// The time of its last sample (its own time but for a stuck run).
     pub t_end: f64,
-    /// The channel ("x", "v") of a stuck run; "" otherwise.
+    /// The column it is in: "t" for a time gap, an early sample or a non-finite time; the
+    /// channel ("x", "v", "u") of a spike, a stuck run or a non-finite value.
     pub channel: &'static str,
 }
 
@@ -124,24 +125,24 @@ impl Blemish {
         let row = self.index + 1;
         match self.kind {
             Kind::NonFinite => format!(
-                "data row {row} (t = {}): a NaN or infinite value; it was left out and the window restarted",
-                self.t
+                "data row {row} (t = {}): a NaN or infinite value in {}; it was left out and the window restarted",
+                self.t, self.channel
             ),
             Kind::Gap => format!(
-                "data row {row} (t = {}): a gap of {:.6} s in time before it; the window restarted",
-                self.t, self.value
+                "data row {row} (t = {}): a gap of {:.6} s in {} before it; the window restarted",
+                self.t, self.value, self.channel
             ),
             Kind::Early => format!(
-                "data row {row} (t = {}): only {:.3e} s after the previous sample (under half a period); it was left out",
-                self.t, self.value
+                "data row {row} (t = {}): {} only {:.3e} s after the previous sample's (under half a period); it was left out",
+                self.t, self.channel, self.value
             ),
             Kind::Spike if self.repaired => format!(
-                "data row {row} (t = {}): an isolated spike ({:e}); it was replaced by the cubic through its four neighbours",
-                self.t, self.value
+                "data row {row} (t = {}): an isolated spike in {} ({:e}); it was replaced by the cubic through its four neighbours",
+                self.t, self.channel, self.value
             ),
             Kind::Spike => format!(
-                "data row {row} (t = {}): an isolated spike ({:e}); it was left out and the window restarted",
-                self.t, self.value
+                "data row {row} (t = {}): an isolated spike in {} ({:e}); it was left out and the window restarted",
+                self.t, self.channel, self.value
             ),
             Kind::Stuck => format!(
                 "data rows {row}–{} (t = {}–{} s): {} is stuck at {} (the same value in {} samples in a row: a sensor that froze, or a logger repeating its last reading); they were left out after the first and the window restarted",
@@ -215,6 +216,10 @@ impl Scan {
         let mut channels: Vec<&[f64]> = vec![&recording.x];
         channels.extend(recording.v.as_deref());
         channels.extend(recording.u.as_deref());
+        // The channels' names, in the same order.
+        let mut channel_names: Vec<&'static str> = vec!["x"];
+        channel_names.extend(recording.v.as_ref().map(|_| "v"));
+        channel_names.extend(recording.u.as_ref().map(|_| "u"));
         let mut steps: Vec<f64> = t
             .iter()
             .copied()
@@ -238,11 +243,13 @@ impl Scan {
         for i in 0..n {
             if !finite(i) {
                 scan.skip[i] = true;
-                let value = channels
+                let (value, channel) = channels
                     .iter()
-                    .map(|c| c[i])
-                    .find(|v| !v.is_finite())
-                    .unwrap_or(t[i]);
+                    .zip(&channel_names)
+                    .map(|(c, name)| (c[i], *name))
+                    .find(|(v, _)| !v.is_finite())
+                    .filter(|_| t[i].is_finite())
+                    .unwrap_or((t[i], "t"));
                 found.push(Blemish {
                     kind: Kind::NonFinite,
                     index: i,
@@ -251,7 +258,7 @@ impl Scan {
                     repaired: false,
                     rows: 1,
                     t_end: t[i],
-                    channel: "",
+                    channel,
                 });
             }
         }
@@ -294,7 +301,7 @@ impl Scan {
                                 repaired: false,
                                 rows: 1,
                                 t_end: t[i],
-                                channel: "",
+                                channel: "t",
                             });
                         }
                         continue;
@@ -310,7 +317,7 @@ impl Scan {
                             repaired: false,
                             rows: 1,
                             t_end: t[i],
-                            channel: "",
+                            channel: "t",
                         });
                     }
                 }
@@ -330,7 +337,7 @@ impl Scan {
                             repaired: false,
                             rows: 1,
                             t_end: t[i],
-                            channel: "",
+                            channel: channel_names[c],
                         });
                     }
                 }
@@ -512,14 +519,22 @@ impl Scan {
                         .collect();
                     return Some(runs.join(", "));
                 }
+                // The columns they are in, each once, in the order found.
+                let mut columns: Vec<&str> = Vec::new();
+                for b in self.blemishes.iter().filter(|b| b.kind == k) {
+                    if !columns.contains(&b.channel) {
+                        columns.push(b.channel);
+                    }
+                }
                 Some(format!(
-                    "{} {} ({})",
+                    "{} {} in {} ({})",
                     rows.len(),
                     if rows.len() == 1 {
                         k.noun_one()
                     } else {
                         k.noun()
                     },
+                    columns.join(" and "),
                     where_text(&rows)
                 ))
             })
@@ -904,9 +919,39 @@ fn spikes(s: &[f64], scan: &Scan) -> Vec<usize> {
                 .filter(|&j| j != i)
                 .map(size)
                 .fold(0.0, f64::max);
-            beyond && size(i) >= SPIKE_DOMINANCE * neighbours
+            beyond && size(i) >= SPIKE_DOMINANCE * neighbours && !level_step(s, i)
         })
         .collect()
+}
+
+/// Samples of one value that make the level a channel steps to (or from) at a sample.
+pub const STEP_ROWS: usize = 3;
+
+/// Whether sample `i` of `s` is the last (or first) of its stretch beside a level change
+/// that stays, not a spike: the next (or previous) [`STEP_ROWS`] samples hold one value
+/// other than its own, and it lies nearer its own side's linear continuation than that
+/// level (by half). A commanded sine cut to 0 (FrID's magneto-mechanical record at row
+/// 11000: u = 0.43, −0.10, then 0) leaves such a sample, which the cubic through its
+/// neighbours took for a spike of −0.23 and "repaired" to 0.13; a spike beside a flat run
+/// (a quantised turning point) is as far from both sides and is still one.
+pub fn level_step(s: &[f64], i: usize) -> bool {
+    let n = s.len();
+    let flat = |from: usize| (from..from + STEP_ROWS).all(|j| s[j] == s[from]);
+    let near_own = |level: f64, continued: f64| {
+        let (own, other) = ((s[i] - continued).abs(), (s[i] - level).abs());
+        own.is_finite() && other.is_finite() && own < 0.5 * other
+    };
+    let after = i >= 2
+        && i + STEP_ROWS < n
+        && flat(i + 1)
+        && s[i] != s[i + 1]
+        && near_own(s[i + 1], 2.0 * s[i - 1] - s[i - 2]);
+    let before = i >= STEP_ROWS
+        && i + 2 < n
+        && flat(i - STEP_ROWS)
+        && s[i] != s[i - 1]
+        && near_own(s[i - 1], 2.0 * s[i + 1] - s[i + 2]);
+    after || before
 }
 
 /// Which derivative windows lie within one clean stretch (no sample left out, no restart

@@ -86,10 +86,9 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             let check = refine::refine_recording(recording, &report);
             report.take_refined(&check);
             // Judged on the refined path only: --no-refine prints the device's model as it
-            // computes it (at 10 % noise it loses the damping that refinement brings back).
+            // computes it.
             contradicted = quality::prediction_misses(recording, &check)
-                .or_else(|| quality::unresolved_damping(&check))
-                .or_else(|| quality::undamped_forced(&report));
+                .or_else(|| quality::unresolved_damping(&check));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {
@@ -101,9 +100,12 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
     // without damping cannot die out (refinement can bring a damping the streaming selection
     // lost back, so this is judged after it); it must predict the held-out half, and damp
     // through a term the record resolves.
+    // A driven model without damping, refined or not: --no-refine printed one at 10 % noise
+    // that the refined path withholds (issue 25).
     if let Some(why) = quality::undamped_decay(recording, &report)
         .or_else(|| quality::unresolved_term(&report))
         .or(contradicted)
+        .or_else(|| quality::undamped_forced(&report))
     {
         let sentence = format!(
             "no deterministic dynamics found in {}: {why}.",

@@ -271,7 +271,7 @@ fn low_pass_cut(n: usize, period: f64) -> usize {
 /// recording (normalised by x's standard deviation over the stretch), and the noise in x.
 /// `None` when it cannot be measured.
 pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHorizon> {
-    use crate::identify::refine::{Data, mean_period_samples, window_errors};
+    use crate::identify::refine::{Data, mean_period_samples, spread_window_errors};
     let scan = Scan::of(recording);
     let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
     let t = &recording.t[stretch.clone()];
@@ -306,18 +306,18 @@ pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHori
     }
     let slots = x.len() / length;
     let windows = slots.min(HORIZON_WINDOWS);
-    let mut each: Vec<f64> = (0..windows)
+    // The windows in one call, so that each is fitted again from other starts when it lands
+    // over twice the lowest (fitted one at a time, none had another to compare with).
+    let spans: Vec<(usize, usize)> = (0..windows)
         .map(|w| {
             let a = (w * slots / windows) * length;
-            let data = Data {
-                t: &t[a..a + length],
-                x: &x[a..a + length],
-                u: u.map(|u| &u[a..a + length]),
-            };
-            window_errors(&model, &data, length).map_or(f64::INFINITY, |e| {
-                100.0 * (e.rss.iter().sum::<f64>() / e.samples.max(1) as f64).sqrt() / sd
-            })
+            (a, a + length)
         })
+        .collect();
+    let data = Data { t, x, u };
+    let mut each: Vec<f64> = spread_window_errors(&model, &data, &spans)
+        .into_iter()
+        .map(|r| r.map_or(f64::INFINITY, |r| 100.0 * (r / length as f64).sqrt() / sd))
         .collect();
     each.sort_by(f64::total_cmp);
     let median = each[(each.len() - 1) / 2];
@@ -739,13 +739,21 @@ pub fn assess(
         .model
         .iter()
         .any(|(t, c)| *c != 0.0 && matches!(t, lssi_core::Term::Sin(_) | lssi_core::Term::Cos(_)));
+    // A model whose free run cannot follow a record that keeps its amplitude is a reason too
+    // (an oscillator without forcing keeps its frequency while it keeps its energy): a
+    // constant-amplitude chirp (1→10 Hz, no dynamics) was printed as a double well once the
+    // short-horizon windows were fitted from several starts (each window alone follows). Not
+    // a ringdown, whose frequency drifts as it dies out.
+    let follows = std::cell::OnceCell::new();
+    let follows =
+        || *follows.get_or_init(|| crate::identify::sweep::model_follows(recording, report));
     if recording.u.is_none()
         && (forced
             || !quality.failures.is_empty()
             || crate::identify::sweep::grows(recording)
-            || crate::identify::sweep::outlasts_model(recording, report) == Some(true))
-        && !(quality.failures.is_empty()
-            && crate::identify::sweep::model_follows(recording, report) == Some(true))
+            || crate::identify::sweep::outlasts_model(recording, report) == Some(true)
+            || (follows() == Some(false) && crate::identify::sweep::keeps_amplitude(recording)))
+        && !(quality.failures.is_empty() && follows() == Some(true))
         && let Some(sweep) = crate::identify::sweep::sweep(recording)
     {
         quality.failures = vec![sweep.sentence()];

@@ -147,8 +147,26 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
         "{refined}"
     );
     // "streaming_terms" is the device's model: "terms" of --no-refine, without errors.
+    // At 10 % noise the streaming selection can lose the damping (it does on this seed):
+    // --no-refine then withholds it (exit 3, a driven model without damping, issue 25), and
+    // the withheld model is the device's, which "streaming_terms" reports.
     let plain = lssi(&["identify", &a, "--family", "odd", "--json", "--no-refine"]);
+    let withheld = plain.status.code() == Some(3);
     let plain: serde_json::Value = serde_json::from_slice(&plain.stdout).unwrap();
+    let plain = if withheld {
+        let reason = plain["reason"].as_str().unwrap();
+        assert!(reason.contains("no term in v, no damping"), "{reason}");
+        assert!(
+            v["streaming_terms"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .all(|t| t["term"] != "v")
+        );
+        plain["withheld_model"].clone()
+    } else {
+        plain
+    };
     assert_eq!(plain["model"], "streaming");
     assert_eq!(plain["terms"], v["streaming_terms"]);
     assert_eq!(plain["terms"], plain["streaming_terms"]);
@@ -195,11 +213,17 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     );
     assert!(text.contains(" m\n"), "{text}");
     let text = lssi(&["identify", &a, "--family", "odd", "--no-refine"]);
-    let text = String::from_utf8(text.stdout).unwrap();
-    assert!(
-        text.contains("model: the streaming identifier's (as a device computes it)\n  not refined (--no-refine)\n"),
-        "{text}"
-    );
+    if withheld {
+        assert_eq!(text.status.code(), Some(3));
+        let stderr = String::from_utf8_lossy(&text.stderr);
+        assert!(stderr.contains("no term in v, no damping"), "{stderr}");
+    } else {
+        let text = String::from_utf8(text.stdout).unwrap();
+        assert!(
+            text.contains("model: the streaming identifier's (as a device computes it)\n  not refined (--no-refine)\n"),
+            "{text}"
+        );
+    }
     // Several recordings: the streaming model, unless --refine asks for refinement, which
     // then gives each file's single-recording model.
     let batch = lssi(&["identify", &a, &a, "--family", "odd", "--json", "--refine"]);

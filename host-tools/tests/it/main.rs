@@ -12,6 +12,7 @@ mod failures_cli;
 mod gate;
 mod generate;
 mod harvester;
+mod identify_gaps;
 mod input_default;
 mod libraries;
 mod log_cli;

@@ -127,12 +127,15 @@ pub(super) fn run(
     let mut channels = vec![excerpt.x.clone()];
     channels.extend(excerpt.v.clone());
     channels.extend(excerpt.u.clone());
+    let mut names: Vec<&'static str> = vec!["x"];
+    names.extend(excerpt.v.as_ref().map(|_| "v"));
+    names.extend(excerpt.u.as_ref().map(|_| "u"));
     let limits: Vec<Option<(f64, f64)>> = channels
         .iter()
         .map(|c| crate::identify::blemish::spike_limit(c, &scan))
         .collect();
     drop(channels);
-    let mut spikes = SpikeRepair::new(limits, scan.dt);
+    let mut spikes = SpikeRepair::new(limits, names, scan.dt);
     // The gate's blocks: the excerpt is the first; the rows as read (the gate finds their
     // blemishes itself, as in memory).
     let mut sketch = Sketch::new(&excerpt, excerpt.len(), gate_blocks);
@@ -141,11 +144,11 @@ pub(super) fn run(
     while let Some(s) = csv.next_sample()? {
         sketch.push(s);
         if let Some((j, out, spike)) = spikes.push(i, s) {
-            if let Some(value) = spike {
+            if let Some((value, channel)) = spike {
                 blemished += 1;
                 if notes.len() < NAMED_REJECTIONS {
                     notes.push(format!(
-                        "{file}: data row {} (t = {}): an isolated spike ({value:e}); it was replaced by the cubic through its four neighbours",
+                        "{file}: data row {} (t = {}): an isolated spike in {channel} ({value:e}); it was replaced by the cubic through its four neighbours",
                         j + 1,
                         out.t
                     ));
@@ -175,6 +178,9 @@ pub(super) fn run(
     })
 }
 
+/// A repaired spike's measured value and its channel's name.
+type Spike = (f64, &'static str);
+
 /// The spike rule on a stream: samples go through a run of seven; the middle one is a spike
 /// when its cubic residual r (against its four neighbours) is beyond the channel's limit and
 /// [`crate::identify::blemish::SPIKE_DOMINANCE`] times its neighbours' r, all seven finite and
@@ -183,14 +189,17 @@ struct SpikeRepair {
     limits: Vec<Option<(f64, f64)>>,
     dt: f64,
     run: std::collections::VecDeque<(usize, Sample)>,
-    /// Repaired spikes still in the run: (index, measured value).
-    judged: Vec<(usize, f64)>,
+    /// The channels' names ("x", then "v" and "u" when measured).
+    names: Vec<&'static str>,
+    /// Repaired spikes still in the run: (index, (measured value, channel)).
+    judged: Vec<(usize, Spike)>,
 }
 
 impl SpikeRepair {
-    fn new(limits: Vec<Option<(f64, f64)>>, dt: f64) -> Self {
+    fn new(limits: Vec<Option<(f64, f64)>>, names: Vec<&'static str>, dt: f64) -> Self {
         Self {
             limits,
+            names,
             dt,
             run: std::collections::VecDeque::with_capacity(8),
             judged: Vec::new(),
@@ -214,8 +223,8 @@ impl SpikeRepair {
     }
 
     /// Takes sample `i`; gives back the sample leaving the run (its index, the sample,
-    /// and the spike's measured value when it was repaired).
-    fn push(&mut self, i: usize, s: Sample) -> Option<(usize, Sample, Option<f64>)> {
+    /// and the spike's measured value and channel when it was repaired).
+    fn push(&mut self, i: usize, s: Sample) -> Option<(usize, Sample, Option<Spike>)> {
         self.run.push_back((i, s));
         let mut spike = None;
         if self.run.len() == 7 && self.dt > 0.0 {
@@ -252,10 +261,11 @@ impl SpikeRepair {
                     let neighbours = size(2).max(size(4));
                     if here > limit
                         && here >= crate::identify::blemish::SPIKE_DOMINANCE * neighbours
+                        && !crate::identify::blemish::level_step(&v, 3)
                     {
                         let value = cubic(3);
                         if value.is_finite() {
-                            spike = Some(v[3]);
+                            spike = Some((v[3], self.names[c]));
                             Self::set(&mut self.run[3].1, c, value);
                         }
                     }
