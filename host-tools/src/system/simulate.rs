@@ -161,6 +161,10 @@ pub struct SystemSim {
     pub electrical: Vec<Electrical>,
     /// Each equation's terms and coefficients.
     pub equations: Vec<Vec<(SimTerm, f64)>>,
+    /// Which electrical channels are algebraic (`V = c v`, target `V` without a prime: a
+    /// coil of negligible inductance), each computed from the other states at every step
+    /// instead of integrated.
+    pub algebraic: [bool; 2],
 }
 
 impl SystemSim {
@@ -179,6 +183,16 @@ impl SystemSim {
                 _ => None,
             })
             .collect::<Option<_>>()?;
+        let mut algebraic = [false; 2];
+        for (k, e) in report
+            .equations
+            .iter()
+            .skip(displacements)
+            .take(2)
+            .enumerate()
+        {
+            algebraic[k] = !e.target.ends_with('\'');
+        }
         let equations = report
             .equations
             .iter()
@@ -193,6 +207,7 @@ impl SystemSim {
             displacements,
             electrical,
             equations,
+            algebraic,
         })
     }
 
@@ -214,16 +229,23 @@ impl SystemSim {
             }
         };
         let mut electrical = Vec::new();
+        let mut algebraic = [false; 2];
         for k in displacements..equations.len() {
-            match target(k) {
-                Some("V'") => electrical.push(Electrical::Voltage),
-                Some("i'") => electrical.push(Electrical::Current),
+            let (kind, proportional) = match target(k) {
+                Some("V'") => (Electrical::Voltage, false),
+                Some("i'") => (Electrical::Current, false),
+                Some("V") => (Electrical::Voltage, true),
+                Some("i") => (Electrical::Current, true),
                 other => {
                     return Err(bad(format!(
-                        "an equation's target is {other:?}, but after the displacements' a system's are \"V'\" or \"i'\""
+                        "an equation's target is {other:?}, but after the displacements' a system's are \"V'\" or \"i'\" (or \"V\", \"i\": algebraic)"
                     )));
                 }
+            };
+            if electrical.len() < 2 {
+                algebraic[electrical.len()] = proportional;
             }
+            electrical.push(kind);
         }
         let mut out = Vec::new();
         for e in equations {
@@ -247,11 +269,26 @@ impl SystemSim {
             }
             out.push(eq);
         }
-        Ok(Self {
+        let sim = Self {
             displacements,
             electrical,
             equations: out,
-        })
+            algebraic,
+        };
+        // An algebraic channel is a function of the mechanical states alone.
+        for k in 0..sim.electrical.len().min(2) {
+            if sim.algebraic[k]
+                && sim.equations[displacements + k]
+                    .iter()
+                    .any(|(t, _)| matches!(t, SimTerm::Monomial(m) if m[2] > 0 || m[3] > 0))
+            {
+                return Err(bad(format!(
+                    "the algebraic equation {} holds an electrical state; it takes the mechanical states and the excitation only",
+                    sim.electrical[k].symbol()
+                )));
+            }
+        }
+        Ok(sim)
     }
 
     /// Whether a term of the model reads u.
@@ -262,9 +299,39 @@ impl SystemSim {
             .any(|(t, _)| *t == SimTerm::Input)
     }
 
-    /// The state's derivative.
+    /// Whether an electrical channel is algebraic (computed from the other states).
+    pub fn has_algebraic(&self) -> bool {
+        self.algebraic.iter().any(|a| *a)
+    }
+
+    /// `s` with each algebraic channel set to its equation's value at `s`, `t`, `u`.
+    pub fn complete(&self, s: &State, t: f64, u: f64) -> State {
+        let mut out = *s;
+        let d = self.displacements;
+        for k in 0..self.electrical.len().min(2) {
+            if self.algebraic[k]
+                && let Some(eq) = self.equations.get(d + k)
+            {
+                out[2 + k] = eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum();
+            }
+        }
+        out
+    }
+
+    /// The state's derivative (an algebraic channel's is 0: it is set from the others).
     fn rate(&self, s: &State, t: f64, u: f64) -> State {
+        let completed;
+        let s = if self.has_algebraic() {
+            completed = self.complete(s, t, u);
+            &completed
+        } else {
+            s
+        };
         let f = |k: usize| -> f64 {
+            if k >= self.displacements && self.algebraic.get(k - self.displacements) == Some(&true)
+            {
+                return 0.0;
+            }
             self.equations.get(k).map_or(0.0, |eq| {
                 eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
             })
@@ -298,6 +365,9 @@ impl SystemSim {
         let at = |i: usize| u.get(i).copied().unwrap_or(0.0);
         let mut dead = false;
         for i in 0..t.len() {
+            if !dead && self.has_algebraic() {
+                s = self.complete(&s, t[i], at(i));
+            }
             out.push(if dead { [f64::NAN; 6] } else { s });
             if i + 1 == t.len() || dead {
                 continue;
@@ -573,6 +643,7 @@ mod tests {
             displacements: 1,
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0, 0, 0]), -2.0)]],
+            algebraic: [false; 2],
         };
         let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1.0);
@@ -594,6 +665,7 @@ mod tests {
             displacements: 2,
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(x2, -1.0)], vec![(v2, 1.0)]],
+            algebraic: [false; 2],
         };
         let t: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.001).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1.0);
