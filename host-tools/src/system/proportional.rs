@@ -226,7 +226,7 @@ fn of_single(
         ),
     };
     let rows = "a least-squares fit on rows a derivative window apart (Savitzky–Golay estimates over disjoint windows), σ² (AᵀA)⁻¹";
-    let mut mechanical = mechanical_terms(&single.terms, single.offsets);
+    let mut mechanical = single.terms.clone();
     let standard_errors = if mechanical.iter().all(|t| t.se.is_some()) {
         format!(
             "x'': standard errors of the refinement on simulation error; {names}: {rows}; they do not cover the selection"
@@ -236,14 +236,8 @@ fn of_single(
     } else {
         format!("x'': none (too few rows or collinear terms); {names}: {rows}")
     };
-    let mut warnings: Vec<String> = data.x_from_v.iter().cloned().collect();
-    if single.offsets != [0.0, 0.0] {
-        warnings.push(format!(
-            "x'' was identified about sensor offsets (x {}, v {}) and is written here expanded in x and v",
-            super::report::number(single.offsets[0]),
-            super::report::number(single.offsets[1])
-        ));
-    }
+    let warnings: Vec<String> = data.x_from_v.iter().cloned().collect();
+
     equations[0].terms = mechanical;
     SystemReport {
         equations,
@@ -265,6 +259,7 @@ fn of_single(
         standard_errors,
         harvester: None,
         quality: None,
+        offsets: (single.offsets != [0.0, 0.0]).then_some(single.offsets),
         algebraic: Some(Algebraic {
             channel: names.clone(),
             nrmse_percent: 100.0 * found.iter().map(|p| p.nrmse).fold(0.0, f64::max),
@@ -287,82 +282,4 @@ fn least_squares_se(terms: &mut [TermReport], data: &SystemData, dt: f64) -> boo
         t.se = s.is_finite().then_some(s);
     }
     true
-}
-
-/// The single equation's terms in the recording's coordinates: as reported when it found no
-/// sensor offsets, else each monomial (x − oₓ)^a (v − oᵥ)^b expanded (binomially) into
-/// monomials of x and v, like terms summed (their standard errors then dropped).
-fn mechanical_terms(terms: &[TermReport], [ox, ov]: [f64; 2]) -> Vec<TermReport> {
-    use super::simulate::SimTerm;
-    if ox == 0.0 && ov == 0.0 {
-        return terms.to_vec();
-    }
-    let mut out: Vec<(SimTerm, f64)> = Vec::new();
-    let mut add = |t: SimTerm, c: f64| match out.iter_mut().find(|(q, _)| *q == t) {
-        Some((_, q)) => *q += c,
-        None => out.push((t, c)),
-    };
-    let binomial = |n: u8, k: u8| -> f64 {
-        (0..k).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1))
-    };
-    for t in terms {
-        match SimTerm::parse(&t.term, &[]) {
-            Some(SimTerm::Monomial(p)) => {
-                let (a, b) = (p[0], p[1]);
-                for i in 0..=a {
-                    for j in 0..=b {
-                        let c = t.coef
-                            * binomial(a, i)
-                            * binomial(b, j)
-                            * (-ox).powi(i32::from(a - i))
-                            * (-ov).powi(i32::from(b - j));
-                        let term = if i == 0 && j == 0 {
-                            SimTerm::Constant
-                        } else {
-                            SimTerm::Monomial([i, j, 0, 0, 0, 0])
-                        };
-                        add(term, c);
-                    }
-                }
-            }
-            Some(other) => add(other, t.coef),
-            None => return terms.to_vec(),
-        }
-    }
-    out.into_iter()
-        .filter(|(_, c)| *c != 0.0)
-        .map(|(t, c)| TermReport {
-            term: t.name(&[]),
-            coef: c,
-            se: None,
-        })
-        .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn offsets_expand_into_the_recordings_coordinates() {
-        // x'' = -4 (x - 1) - 2 (v - 0.5)^2 = -4 x + 4 - 2 v^2 + 2 v - 0.5.
-        let single = vec![
-            TermReport {
-                term: "x".into(),
-                coef: -4.0,
-                se: None,
-            },
-            TermReport {
-                term: "v^2".into(),
-                coef: -2.0,
-                se: None,
-            },
-        ];
-        let terms = mechanical_terms(&single, [1.0, 0.5]);
-        let get = |n: &str| terms.iter().find(|t| t.term == n).map(|t| t.coef);
-        assert_eq!(get("x"), Some(-4.0));
-        assert_eq!(get("1"), Some(3.5));
-        assert_eq!(get("v"), Some(2.0));
-        assert_eq!(get("v^2"), Some(-2.0));
-    }
 }

@@ -89,6 +89,10 @@ pub struct SystemReport {
     /// ([`super::proportional`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub algebraic: Option<super::proportional::Algebraic>,
+    /// Sensor offsets (x, v) the single equation found (an algebraic model's x'' only): x''
+    /// is in x − oₓ and v − oᵥ, and x' = v − oᵥ.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub offsets: Option<[f64; 2]>,
     /// Warnings (the model is not refined, x integrated from v, …).
     pub warnings: Vec<String>,
     /// One sentence per rejected sample; not part of the JSON.
@@ -176,6 +180,7 @@ impl SystemReport {
             harvester: None,
             quality: None,
             algebraic: None,
+            offsets: None,
             warnings,
             rejections: Vec::new(),
         }
@@ -230,6 +235,13 @@ impl SystemReport {
         ));
         if let Some(s) = &self.x_from_v {
             out.push_str(&format!("  {s}\n"));
+        }
+        if let Some([ox, ov]) = self.offsets {
+            out.push_str(&format!(
+                "sensor offsets: x {}, v {} (x'' is in x − {0} and v − {1}, and x' = v − {1})\n",
+                number(ox),
+                number(ov)
+            ));
         }
         out.push_str(&format!(
             "window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   coupling order {}   {}\n",

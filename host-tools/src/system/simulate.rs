@@ -165,6 +165,11 @@ pub struct SystemSim {
     /// coil of negligible inductance), each computed from the other states at every step
     /// instead of integrated.
     pub algebraic: [bool; 2],
+    /// Sensor offsets (x, v) of the first displacement's equation: x'' is evaluated at x − oₓ,
+    /// v − oᵥ, and x' = v − oᵥ (the single equation's coordinates, as `lssi identify` without
+    /// the electrical column gives them: [`crate::identify::Report::offsets`]); the states stay
+    /// in the recording's coordinates. Zero but for an algebraic model.
+    pub offsets: [f64; 2],
 }
 
 impl SystemSim {
@@ -208,6 +213,7 @@ impl SystemSim {
             electrical,
             equations,
             algebraic,
+            offsets: report.offsets.unwrap_or([0.0, 0.0]),
         })
     }
 
@@ -269,11 +275,29 @@ impl SystemSim {
             }
             out.push(eq);
         }
+        let offsets = match value.get("offsets") {
+            None | Some(serde_json::Value::Null) => [0.0, 0.0],
+            Some(o) => {
+                let pair = o
+                    .as_array()
+                    .filter(|a| a.len() == 2)
+                    .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
+                    .ok_or_else(|| bad("its \"offsets\" is not a pair of numbers [x, v]".into()))?;
+                if displacements > 1 && pair != [0.0, 0.0] {
+                    return Err(bad(
+                        "it has sensor offsets, which a system of two displacements does not take"
+                            .into(),
+                    ));
+                }
+                pair
+            }
+        };
         let sim = Self {
             displacements,
             electrical,
             equations: out,
             algebraic,
+            offsets,
         };
         // An algebraic channel is a function of the mechanical states alone.
         for k in 0..sim.electrical.len().min(2) {
@@ -327,20 +351,23 @@ impl SystemSim {
         } else {
             s
         };
+        let [ox, ov] = self.offsets;
+        let shifted = [s[0] - ox, s[1] - ov, s[2], s[3], s[4], s[5]];
         let f = |k: usize| -> f64 {
             if k >= self.displacements && self.algebraic.get(k - self.displacements) == Some(&true)
             {
                 return 0.0;
             }
+            let at = if k == 0 { &shifted } else { s };
             self.equations.get(k).map_or(0.0, |eq| {
-                eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
+                eq.iter().map(|(term, c)| c * term.eval(at, t, u)).sum()
             })
         };
         let d = self.displacements;
         if d > 1 {
             [s[1], f(0), f(d), f(d + 1), s[5], f(1)]
         } else {
-            [s[1], f(0), f(1), f(2), 0.0, 0.0]
+            [s[1] - ov, f(0), f(1), f(2), 0.0, 0.0]
         }
     }
 
@@ -644,6 +671,7 @@ mod tests {
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0, 0, 0]), -2.0)]],
             algebraic: [false; 2],
+            offsets: [0.0, 0.0],
         };
         let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1.0);
@@ -666,6 +694,7 @@ mod tests {
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(x2, -1.0)], vec![(v2, 1.0)]],
             algebraic: [false; 2],
+            offsets: [0.0, 0.0],
         };
         let t: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.001).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1.0);

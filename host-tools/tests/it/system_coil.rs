@@ -281,6 +281,9 @@ fn a_channel_proportional_to_noise_is_still_withheld() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(err.contains("no deterministic dynamics found"), "{err}");
+    // Withheld on the proportional path: the proportion is named, and x'' is what failed.
+    assert!(err.contains("V is proportional to v on this recording"), "{err}");
+    assert!(err.contains("that is withheld"), "{err}");
     assert!(o.stdout.is_empty());
 }
 
