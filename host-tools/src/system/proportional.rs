@@ -22,8 +22,9 @@
 //! v), after the single equation's own gate; either failing withholds the model. A channel
 //! is taken as proportional when the proportion leaves at most
 //! [`super::quality::PROPORTIONAL_NRMSE`] of its RMS (a lag under 3°), on every electrical
-//! channel of a one-displacement recording; anything else (an inductive coil, a piezo) takes
-//! the system's path unchanged.
+//! channel of a one-displacement recording with x recorded (a velocity alone, integrated, is
+//! withheld as before: see [`follows_velocity`]); anything else (an inductive coil, a piezo)
+//! takes the system's path unchanged.
 
 use serde::Serialize;
 
@@ -79,7 +80,12 @@ pub fn proportions(dt: f64, data: &SystemData) -> Vec<Option<Proportion>> {
 /// The proportions when every electrical channel of a one-displacement recording follows the
 /// velocity within [`super::quality::PROPORTIONAL_NRMSE`]; else `None`.
 pub fn follows_velocity(dt: f64, data: &SystemData) -> Option<Vec<Proportion>> {
-    if data.second.is_some() || data.electrical.is_empty() {
+    // A velocity recorded without a displacement stays on the system's path (withheld with
+    // the proportion): x integrated from v, its drift removed, gives the single equation
+    // spurious terms (v², x², a sine of the forcing) that its gate passes (`lssi gen
+    // electromagnetic --coil negligible --observe v`, seeds 200-235: 5 of 12 such models
+    // wrong, every one with x recorded right or withheld).
+    if data.second.is_some() || data.electrical.is_empty() || data.x_from_v.is_some() {
         return None;
     }
     proportions(dt, data)
