@@ -534,9 +534,10 @@ fn proportional_terms(
             h.phi = Some(c * (rc + h.load_ohms) / s);
         }
         Some(_) => {}
-        None => h.notes.push(format!(
+        None => h.notes.push(
             "the transduction factor Φ = c (R_c + R)/R needs the coil's resistance (--coil-ohms R_c)"
-        )),
+                .into(),
+        ),
     }
     if let Some(a) = &report.algebraic
         && omega > 0.0
