@@ -282,7 +282,10 @@ fn a_channel_proportional_to_noise_is_still_withheld() {
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(err.contains("no deterministic dynamics found"), "{err}");
     // Withheld on the proportional path: the proportion is named, and x'' is what failed.
-    assert!(err.contains("V is proportional to v on this recording"), "{err}");
+    assert!(
+        err.contains("V is proportional to v on this recording"),
+        "{err}"
+    );
     assert!(err.contains("that is withheld"), "{err}");
     assert!(o.stdout.is_empty());
 }
