@@ -149,3 +149,32 @@ def test_two_displacements_from_a_file_simulate_each_state(cli, tmp_path):
     frame = pd.DataFrame({name: data[name] for name in data.dtype.names})
     with pytest.raises(ValueError, match="two displacements \\(x1, x2\\).*lssi.identify\\(path\\)"):
         lssi.Model().fit(frame)
+
+
+def test_a_coil_of_negligible_inductance_is_x_and_the_algebraic_voltage(cli, tmp_path):
+    """`lssi gen electromagnetic --coil negligible` (V proportional to v, 1 % noise, 5 s):
+    `lssi.identify` gives the command's model, x'' and the algebraic V = c v (the truth's c
+    within 1 %), and `Model.simulate` returns V computed from the simulated v."""
+    path = tmp_path / "coil.csv"
+    cli("gen", "electromagnetic", "--coil", "negligible", "--input", "--t-end", "5",
+        "--delta", "0.01", "--seed", "3", path)
+    truth = json.loads(path.with_suffix(".json").read_text())
+    expected = cli("identify", path, "--json").strip()
+    m = lssi.identify(path, f32=True)
+    assert m.to_json() == expected
+    equations = m.equations()
+    assert list(equations) == ["x''", "V"]
+    assert list(equations["V"]) == ["v"]
+    c = next(e for e in truth["equations"] if e["target"] == "V")["terms"][0]["coef"]
+    assert equations["V"]["v"] == pytest.approx(c, rel=0.01)
+    assert "V" not in equations["x''"]
+    header = path.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    col = {name: data[:, k] for k, name in enumerate(header)}
+    t, u = col["t"][:2000], col["u"][:2000]
+    out = m.simulate({"x": col["x"][0], "v": 0.0, "V": col["V"][0]}, t, u=u)
+    assert list(out) == ["x", "v", "V"]
+    assert np.allclose(out["V"], equations["V"]["v"] * out["v"], rtol=1e-12, atol=0.0)
+    # The recorded voltage is followed (the noise is 1 % of its RMS).
+    error = np.sqrt(np.mean((out["V"][1000:] - col["V"][1000:2000]) ** 2))
+    assert error < 0.1 * np.sqrt(np.mean(col["V"][1000:2000] ** 2))

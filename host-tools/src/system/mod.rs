@@ -25,6 +25,7 @@
 //! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
 
 pub mod power;
+pub mod proportional;
 pub mod quality;
 pub mod refine;
 pub mod report;
@@ -700,6 +701,10 @@ pub fn identify_system(
             report.rejections.len() - NAMED,
             report.rejections.len()
         );
+    }
+    // Every electrical channel proportional to v: x'' and the algebraic V = c v.
+    if let Some(outcome) = proportional::identify(data, options, args, no_refine, &report)? {
+        return Ok(outcome);
     }
     if !no_refine {
         refine_report(&mut report, data);

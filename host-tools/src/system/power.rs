@@ -109,6 +109,14 @@ pub struct Harvester {
     pub optimal_power_w: Option<f64>,
     /// Predicted mean power against the forcing frequency (rad/s).
     pub frequency_sweep: Vec<PowerPoint>,
+    /// An algebraic electrical equation (`V = c v`, a coil of negligible inductance): c, V
+    /// (or A) per unit of v.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gain: Option<f64>,
+    /// With an algebraic electrical equation: −(the v coefficient of x''), the beam's damping and
+    /// the electrical damping together, per unit mass, 1/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub damping_per_mass: Option<f64>,
     /// What could not be computed and why.
     pub notes: Vec<String>,
 }
@@ -221,6 +229,27 @@ impl Circuit {
     }
 }
 
+/// The forcing's angular frequency, rad/s: Ω of the model's harmonics, or with a measured
+/// excitation u (the report's Ω is then 1, unused) u's strongest spectral line.
+fn forcing_omega(sim: &SystemSim, report: &SystemReport, data: &SystemData) -> f64 {
+    let harmonics = sim
+        .equations
+        .iter()
+        .flatten()
+        .any(|(t, _)| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_)));
+    if harmonics || !sim.uses_input() {
+        return report.omega;
+    }
+    data.recording
+        .u
+        .as_deref()
+        .and_then(crate::identify::refine::mean_period_samples)
+        .filter(|p| *p > 0.0 && report.sample_period > 0.0)
+        .map_or(report.omega, |p| {
+            std::f64::consts::TAU / (p * report.sample_period)
+        })
+}
+
 /// The harvester in physical terms for load `ohms` and, for an electromagnetic harvester,
 /// the coil's resistance `coil_ohms` (see the module's documentation).
 pub fn harvester(
@@ -252,6 +281,8 @@ pub fn harvester(
         optimal_load_ohms: None,
         optimal_power_w: None,
         frequency_sweep: Vec::new(),
+        gain: None,
+        damping_per_mass: None,
         notes: Vec::new(),
     };
     let Some(sim) = SystemSim::of_report(report) else {
@@ -275,7 +306,8 @@ pub fn harvester(
         return h;
     };
     let current = sim.electrical[kv] == Electrical::Current;
-    if current || coil_ohms.is_some() {
+    let algebraic = sim.algebraic.get(kv) == Some(&true);
+    if current || coil_ohms.is_some() || algebraic {
         h.transducer = Transducer::Electromagnetic;
     }
     if current {
@@ -298,6 +330,7 @@ pub fn harvester(
     let chi = coefficient(&sim, 0, e_term);
     let e = h.channel;
     let r = &data.recording;
+    let omega = forcing_omega(&sim, report, data);
     let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;
     let span = 4.0 * rms(&r.x.iter().map(|q| q - mean_x).collect::<Vec<_>>());
     // The physical reading assumes a beam that dissipates: x'' ∋ −c v with c ≥ 0.
@@ -316,13 +349,17 @@ pub fn harvester(
             "the mechanical equation has no stable equilibrium within 4 RMS of the mean x, so no stiffness and no k²".into(),
         );
     }
-    if kappa != 0.0 {
+    if algebraic {
+        proportional_terms(&mut h, &sim, report, kv, omega);
+    } else if kappa != 0.0 {
         h.kappa = Some(kappa);
     } else {
         h.notes
             .push(format!("{e}' has no v term (κ = 0), so no coupling"));
     }
-    if chi != 0.0 {
+    if algebraic {
+        // χ, λ and κ belong to an electrical equation with dynamics: see proportional_terms.
+    } else if chi != 0.0 {
         h.chi = Some(chi);
     } else {
         h.notes
@@ -331,7 +368,8 @@ pub fn harvester(
     if let (Some(k), true) = (h.stiffness_per_mass, kappa * chi != 0.0) {
         h.coupling_k2 = Some(kappa * chi / (k + kappa * chi));
     }
-    if lambda > 0.0 {
+    if algebraic {
+    } else if lambda > 0.0 {
         h.lambda = Some(lambda);
         h.time_constant_s = Some(1.0 / lambda);
         match (h.transducer, coil_ohms) {
@@ -420,11 +458,9 @@ pub fn harvester(
         // Centred on the impedance matching the source's at Ω: 1/(Ω C_p), or
         // |R_c + jΩL| for a coil.
         let centre = match (h.transducer, h.capacitance_f, h.inductance_h, coil_ohms) {
-            (Transducer::Piezoelectric, Some(cp), _, _) if report.omega > 0.0 => {
-                1.0 / (report.omega * cp)
-            }
+            (Transducer::Piezoelectric, Some(cp), _, _) if omega > 0.0 => 1.0 / (omega * cp),
             (Transducer::Electromagnetic, _, Some(l), Some(rc)) => {
-                rc.hypot(report.omega * l).max(1e-3 * ohms)
+                rc.hypot(omega * l).max(1e-3 * ohms)
             }
             _ => ohms,
         };
@@ -474,17 +510,7 @@ pub fn harvester(
         .iter()
         .flatten()
         .any(|(t, _)| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_)));
-    // The forcing's frequency: Ω of the harmonics, else the measured u's strongest line (Ω
-    // is not estimated when u is the forcing: its placeholder would centre the sweep on
-    // 1 rad/s).
-    let forcing = if has_harmonics {
-        Some(report.omega)
-    } else {
-        crate::identify::refine::mean_period_samples(&u)
-            .map(|p| std::f64::consts::TAU / (p * report.sample_period))
-    }
-    .filter(|w| w.is_finite() && *w > 0.0);
-    if let Some(omega) = forcing.filter(|_| has_harmonics || sim.uses_input()) {
+    if omega > 0.0 && (has_harmonics || sim.uses_input()) {
         let amplitude = std::f64::consts::SQRT_2 * rms(&u);
         for k in 0..=20 {
             let scale = 0.5 + 0.05 * f64::from(k);
@@ -513,6 +539,60 @@ pub fn harvester(
     h
 }
 
+/// The harvester of an algebraic electrical equation `V = c v` (or `i = c v`): a coil of
+/// negligible inductance across the load R, V = R Φ v/(R_c + R) (i = Φ v/(R_c + R)). The
+/// gain c; with `--coil-ohms` the transduction factor Φ = c (R_c + R)/R (or c (R_c + R)); the
+/// damping per unit mass −(the v coefficient of x''), the beam's and the electrical one together;
+/// an upper bound on the time constant from how closely the channel follows v. The power
+/// against the load needs the beam's damping parted from the electrical damping Φ²/(m (R_c +
+/// R)), which changes with the load and which this record cannot part: a note says so (the
+/// frequency sweep, at the recorded load, needs neither).
+fn proportional_terms(
+    h: &mut Harvester,
+    sim: &SystemSim,
+    report: &SystemReport,
+    kv: usize,
+    omega: f64,
+) {
+    let v_term = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
+    let c = coefficient(sim, sim.displacements + kv, v_term);
+    let e = h.channel;
+    if c != 0.0 {
+        h.gain = Some(c);
+    }
+    let damping = -coefficient(sim, 0, v_term);
+    if damping != 0.0 {
+        h.damping_per_mass = Some(damping);
+    }
+    match h.coil_ohms {
+        Some(rc) if c != 0.0 => {
+            let s = if e == "i" { 1.0 } else { h.load_ohms };
+            h.phi = Some(c * (rc + h.load_ohms) / s);
+        }
+        Some(_) => {}
+        None => h.notes.push(
+            "the transduction factor Φ = c (R_c + R)/R needs the coil's resistance (--coil-ohms R_c)"
+                .into(),
+        ),
+    }
+    if let Some(a) = &report.algebraic
+        && omega > 0.0
+    {
+        // A first-order lag τ of v leaves sin φ of the channel, tan φ = Ω τ.
+        let sin = (a.nrmse_percent / 100.0).min(0.999);
+        let tau = sin / (1.0 - sin * sin).sqrt() / omega;
+        h.notes.push(format!(
+            "{e} follows v within {:.1} % of its RMS: the electrical time constant (L/(R_c + R) for a coil) is under about {} s at Ω = {} rad/s, negligible",
+            a.nrmse_percent,
+            super::report::number(tau),
+            super::report::number(omega)
+        ));
+    }
+    h.notes.push(format!(
+        "no coupling factor k², mass or power against the load: with {e} = c v the coupling's reaction in x'' is a multiple of v, so the record gives the beam's damping and the electrical damping Φ²/(m (R_c + R)) only as their sum (−(the v coefficient of x'')); the electrical part, which changes with the load, is parted by a record at a second load"
+    ));
+}
+
 impl Harvester {
     /// How the mean power at the load is written: `V²/R` or `R i²`.
     pub fn power_formula(&self) -> &'static str {
@@ -527,6 +607,9 @@ impl Harvester {
     pub fn render(&self) -> String {
         let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
         let e = self.channel;
+        if self.gain.is_some() || self.damping_per_mass.is_some() {
+            return self.render_proportional();
+        }
         let mut out = match self.transducer {
             Transducer::Piezoelectric => format!(
                 "harvester at the recorded load R = {} Ω (per-unit-mass forms: x'' ∋ χ V, V' = −λ V − κ v; SI units when x is in m and V in V)\n",
@@ -578,6 +661,41 @@ impl Harvester {
                 ));
             }
         }
+        out.push_str(&self.render_power());
+        out
+    }
+
+    /// The text table of an algebraic electrical equation's harvester ([`proportional_terms`]).
+    fn render_proportional(&self) -> String {
+        let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
+        let e = self.channel;
+        let mut out = format!(
+            "electromagnetic harvester at the recorded load R = {} Ω, {}, of negligible inductance (x'' over the mechanical states, {e} = c v algebraic; SI units when x is in m)\n",
+            super::report::number(self.load_ohms),
+            self.coil_ohms
+                .map_or("coil resistance not given".to_owned(), |c| format!(
+                    "coil R_c = {} Ω",
+                    super::report::number(c)
+                ))
+        );
+        out.push_str(&format!(
+            "  {e} = c v: c = {} {}   Φ = c (R_c + R){} = {} N/A   stiffness per mass k/m = {} 1/s² (at x = {})   damping per mass, beam + electrical = {} 1/s\n",
+            n(self.gain),
+            if e == "i" { "A s/m" } else { "V s/m" },
+            if e == "i" { "" } else { "/R" },
+            n(self.phi),
+            n(self.stiffness_per_mass),
+            n(self.equilibrium),
+            n(self.damping_per_mass)
+        ));
+        out.push_str(&self.render_power());
+        out
+    }
+
+    /// The mean power, the sweeps and the notes (the text table's end).
+    fn render_power(&self) -> String {
+        let mut out = String::new();
+        let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
         out.push_str(&format!(
             "  mean power {} over the second half: measured {} W, predicted {} W (free run from the first row)\n",
             self.power_formula(),

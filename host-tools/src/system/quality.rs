@@ -628,7 +628,9 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
             }
         }
     }
-    if let Some(why) = electrical_follows_velocity(&sim, report, data) {
+    if report.equations.iter().any(super::report::is_algebraic) {
+        // V = c v (super::proportional): no electrical dynamics, no coupling term to check.
+    } else if let Some(why) = electrical_follows_velocity(&sim, report, data) {
         q.failures.push(why);
     } else if let Some(why) = coupling_both_ways(&sim, report, data) {
         q.failures.push(why);

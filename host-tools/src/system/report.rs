@@ -84,6 +84,15 @@ pub struct SystemReport {
     /// What the quality gate measured ([`super::quality`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<super::quality::SystemQuality>,
+    /// An electrical channel proportional to the velocity: its equation is algebraic (`V = c
+    /// v`, target without a prime), x'' the mechanical channels' single equation
+    /// ([`super::proportional`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub algebraic: Option<super::proportional::Algebraic>,
+    /// Sensor offsets (x, v) the single equation found (an algebraic model's x'' only): x''
+    /// is in x − oₓ and v − oᵥ, and x' = v − oᵥ.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub offsets: Option<[f64; 2]>,
     /// Warnings (the model is not refined, x integrated from v, …).
     pub warnings: Vec<String>,
     /// One sentence per rejected sample; not part of the JSON.
@@ -170,6 +179,8 @@ impl SystemReport {
             standard_errors: String::new(),
             harvester: None,
             quality: None,
+            algebraic: None,
+            offsets: None,
             warnings,
             rejections: Vec::new(),
         }
@@ -185,7 +196,16 @@ impl SystemReport {
         let mut out = String::new();
         for e in &self.equations {
             out.push_str(&equation_text(e));
+            if is_algebraic(e) {
+                out.push_str("   (algebraic)");
+            }
             out.push('\n');
+        }
+        if let Some(a) = &self.algebraic {
+            out.push_str(&format!(
+                "  algebraic: {} follows v within {:.1} % of its RMS (a coil of negligible inductance, or a time constant far under the forcing's period): no dynamics of its own for an equation {}' to identify; {}\n",
+                a.channel, a.nrmse_percent, a.channel, a.damping
+            ));
         }
         out.push_str(&format!("model: {}\n", self.note));
         out.push_str(&format!("  ± {}\n", self.standard_errors));
@@ -216,6 +236,13 @@ impl SystemReport {
         if let Some(s) = &self.x_from_v {
             out.push_str(&format!("  {s}\n"));
         }
+        if let Some([ox, ov]) = self.offsets {
+            out.push_str(&format!(
+                "sensor offsets: x {}, v {} (x'' is in x − {0} and v − {1}, and x' = v − {1})\n",
+                number(ox),
+                number(ov)
+            ));
+        }
         out.push_str(&format!(
             "window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   coupling order {}   {}\n",
             self.window,
@@ -232,7 +259,7 @@ impl SystemReport {
             self.coupling_order,
             self.precision
         ));
-        for e in &self.equations {
+        for e in self.equations.iter().filter(|e| !is_algebraic(e)) {
             out.push_str(&format!(
                 "\n{}:  #  threshold   mean error  terms\n",
                 e.target
@@ -278,6 +305,11 @@ impl SystemReport {
             refined.segments
         );
     }
+}
+
+/// Whether an equation is algebraic (`V = c v`: its target has no prime).
+pub fn is_algebraic(e: &EquationReport) -> bool {
+    !e.target.ends_with('\'')
 }
 
 /// `x'' = (c ± se) x + …`, or plain coefficients where a term has no standard error.

@@ -161,6 +161,15 @@ pub struct SystemSim {
     pub electrical: Vec<Electrical>,
     /// Each equation's terms and coefficients.
     pub equations: Vec<Vec<(SimTerm, f64)>>,
+    /// Which electrical channels are algebraic (`V = c v`, target `V` without a prime: a
+    /// coil of negligible inductance), each computed from the other states at every step
+    /// instead of integrated.
+    pub algebraic: [bool; 2],
+    /// Sensor offsets (x, v) of the first displacement's equation: x'' is evaluated at x − oₓ,
+    /// v − oᵥ, and x' = v − oᵥ (the single equation's coordinates, as `lssi identify` without
+    /// the electrical column gives them: [`crate::identify::Report::offsets`]); the states stay
+    /// in the recording's coordinates. Zero but for an algebraic model.
+    pub offsets: [f64; 2],
 }
 
 impl SystemSim {
@@ -179,6 +188,16 @@ impl SystemSim {
                 _ => None,
             })
             .collect::<Option<_>>()?;
+        let mut algebraic = [false; 2];
+        for (k, e) in report
+            .equations
+            .iter()
+            .skip(displacements)
+            .take(2)
+            .enumerate()
+        {
+            algebraic[k] = !e.target.ends_with('\'');
+        }
         let equations = report
             .equations
             .iter()
@@ -193,6 +212,8 @@ impl SystemSim {
             displacements,
             electrical,
             equations,
+            algebraic,
+            offsets: report.offsets.unwrap_or([0.0, 0.0]),
         })
     }
 
@@ -214,16 +235,23 @@ impl SystemSim {
             }
         };
         let mut electrical = Vec::new();
+        let mut algebraic = [false; 2];
         for k in displacements..equations.len() {
-            match target(k) {
-                Some("V'") => electrical.push(Electrical::Voltage),
-                Some("i'") => electrical.push(Electrical::Current),
+            let (kind, proportional) = match target(k) {
+                Some("V'") => (Electrical::Voltage, false),
+                Some("i'") => (Electrical::Current, false),
+                Some("V") => (Electrical::Voltage, true),
+                Some("i") => (Electrical::Current, true),
                 other => {
                     return Err(bad(format!(
-                        "an equation's target is {other:?}, but after the displacements' a system's are \"V'\" or \"i'\""
+                        "an equation's target is {other:?}, but after the displacements' a system's are \"V'\" or \"i'\" (or \"V\", \"i\": algebraic)"
                     )));
                 }
+            };
+            if electrical.len() < 2 {
+                algebraic[electrical.len()] = proportional;
             }
+            electrical.push(kind);
         }
         let mut out = Vec::new();
         for e in equations {
@@ -247,11 +275,44 @@ impl SystemSim {
             }
             out.push(eq);
         }
-        Ok(Self {
+        let offsets = match value.get("offsets") {
+            None | Some(serde_json::Value::Null) => [0.0, 0.0],
+            Some(o) => {
+                let pair = o
+                    .as_array()
+                    .filter(|a| a.len() == 2)
+                    .and_then(|a| Some([a[0].as_f64()?, a[1].as_f64()?]))
+                    .ok_or_else(|| bad("its \"offsets\" is not a pair of numbers [x, v]".into()))?;
+                if displacements > 1 && pair != [0.0, 0.0] {
+                    return Err(bad(
+                        "it has sensor offsets, which a system of two displacements does not take"
+                            .into(),
+                    ));
+                }
+                pair
+            }
+        };
+        let sim = Self {
             displacements,
             electrical,
             equations: out,
-        })
+            algebraic,
+            offsets,
+        };
+        // An algebraic channel is a function of the mechanical states alone.
+        for k in 0..sim.electrical.len().min(2) {
+            if sim.algebraic[k]
+                && sim.equations[displacements + k]
+                    .iter()
+                    .any(|(t, _)| matches!(t, SimTerm::Monomial(m) if m[2] > 0 || m[3] > 0))
+            {
+                return Err(bad(format!(
+                    "the algebraic equation {} holds an electrical state; it takes the mechanical states and the excitation only",
+                    sim.electrical[k].symbol()
+                )));
+            }
+        }
+        Ok(sim)
     }
 
     /// Whether a term of the model reads u.
@@ -262,18 +323,51 @@ impl SystemSim {
             .any(|(t, _)| *t == SimTerm::Input)
     }
 
-    /// The state's derivative.
+    /// Whether an electrical channel is algebraic (computed from the other states).
+    pub fn has_algebraic(&self) -> bool {
+        self.algebraic.iter().any(|a| *a)
+    }
+
+    /// `s` with each algebraic channel set to its equation's value at `s`, `t`, `u`.
+    pub fn complete(&self, s: &State, t: f64, u: f64) -> State {
+        let mut out = *s;
+        let d = self.displacements;
+        for k in 0..self.electrical.len().min(2) {
+            if self.algebraic[k]
+                && let Some(eq) = self.equations.get(d + k)
+            {
+                out[2 + k] = eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum();
+            }
+        }
+        out
+    }
+
+    /// The state's derivative (an algebraic channel's is 0: it is set from the others).
     fn rate(&self, s: &State, t: f64, u: f64) -> State {
+        let completed;
+        let s = if self.has_algebraic() {
+            completed = self.complete(s, t, u);
+            &completed
+        } else {
+            s
+        };
+        let [ox, ov] = self.offsets;
+        let shifted = [s[0] - ox, s[1] - ov, s[2], s[3], s[4], s[5]];
         let f = |k: usize| -> f64 {
+            if k >= self.displacements && self.algebraic.get(k - self.displacements) == Some(&true)
+            {
+                return 0.0;
+            }
+            let at = if k == 0 { &shifted } else { s };
             self.equations.get(k).map_or(0.0, |eq| {
-                eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum()
+                eq.iter().map(|(term, c)| c * term.eval(at, t, u)).sum()
             })
         };
         let d = self.displacements;
         if d > 1 {
             [s[1], f(0), f(d), f(d + 1), s[5], f(1)]
         } else {
-            [s[1], f(0), f(1), f(2), 0.0, 0.0]
+            [s[1] - ov, f(0), f(1), f(2), 0.0, 0.0]
         }
     }
 
@@ -298,6 +392,9 @@ impl SystemSim {
         let at = |i: usize| u.get(i).copied().unwrap_or(0.0);
         let mut dead = false;
         for i in 0..t.len() {
+            if !dead && self.has_algebraic() {
+                s = self.complete(&s, t[i], at(i));
+            }
             out.push(if dead { [f64::NAN; 6] } else { s });
             if i + 1 == t.len() || dead {
                 continue;
@@ -573,6 +670,8 @@ mod tests {
             displacements: 1,
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0, 0, 0]), -2.0)]],
+            algebraic: [false; 2],
+            offsets: [0.0, 0.0],
         };
         let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1.0);
@@ -594,6 +693,8 @@ mod tests {
             displacements: 2,
             electrical: vec![Electrical::Voltage],
             equations: vec![vec![], vec![(x2, -1.0)], vec![(v2, 1.0)]],
+            algebraic: [false; 2],
+            offsets: [0.0, 0.0],
         };
         let t: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.001).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1.0);

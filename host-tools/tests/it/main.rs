@@ -36,6 +36,7 @@ mod stream_gate;
 mod stuck;
 mod sweep;
 mod system;
+mod system_coil;
 mod system_gate;
 mod system_load;
 mod system_power;

@@ -223,57 +223,6 @@ fn broken_voltage_channels_are_withheld() {
     }
 }
 
-/// An electrical channel proportional to the velocity (an electromagnetic coil of negligible
-/// inductance) has no equation of its own: withheld, the sentence giving the proportion (the
-/// truth's V = c v or i = c v). Seeds 41, 42 (the check's threshold is physical: a lag under 3°).
-#[test]
-fn a_channel_proportional_to_the_velocity_is_named_with_its_proportion() {
-    let dir = tempfile::tempdir().unwrap();
-    for (seed, channel) in [("41", "i"), ("42", "V")] {
-        let path = dir.path().join(format!("n{seed}.csv"));
-        generate(
-            &[
-                "electromagnetic",
-                "--coil",
-                "negligible",
-                "--electrical",
-                channel,
-                "--delta",
-                "0.01",
-                "--seed",
-                seed,
-            ],
-            &path,
-        );
-        let truth: Value =
-            serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap())
-                .unwrap();
-        let c = truth["equations"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|e| e["target"] == channel)
-            .map(|e| e["terms"][0]["coef"].as_f64().unwrap())
-            .unwrap();
-        let out = lssi(&["identify", path.to_str().unwrap(), "--json"]);
-        assert_eq!(out.status.code(), Some(3), "{seed}");
-        let json: Value = serde_json::from_slice(&out.stdout).unwrap();
-        let reason = json["reason"].as_str().unwrap();
-        assert!(
-            reason.contains(&format!("{channel} is proportional to v on this recording")),
-            "{reason}"
-        );
-        // The proportion printed is the truth's within 1 %.
-        let printed: f64 = reason
-            .split(&format!("({channel} = ("))
-            .nth(1)
-            .and_then(|s| s.split(' ').next())
-            .and_then(|s| s.parse().ok())
-            .unwrap();
-        assert!((printed / c - 1.0).abs() < 0.01, "{printed} against {c}");
-    }
-}
-
 /// A harvester's x'' with the coupling but without its own damping (the selection traded −c v
 /// for an inflated χV under a single forcing tone: V lags v by a few degrees) is withheld with
 /// v's refitted coefficient; the same harvester on a seed where the selection keeps v passes.

@@ -485,7 +485,9 @@ class Model:
 
     def equations(self) -> Dict[str, Dict[str, float]]:
         """Each equation's active terms and coefficients, by target: ``{"x''": {"x": …},
-        "V'": {"V": …, "v": …}}`` (a single equation: ``{"x''": …}``, its active terms)."""
+        "V'": {"V": …, "v": …}}`` (a single equation: ``{"x''": …}``, its active terms). An
+        electrical channel proportional to v has the algebraic ``{"V": {"v": c}}`` instead of
+        ``V'``, and the v coefficient of x'' then holds the beam's and the electrical damping."""
         fit = self._fitted()
         if self._is_system():
             return {target: dict(terms) for target, terms in fit.equations()}
@@ -586,7 +588,10 @@ class Model:
         ``x0`` may also be a mapping of every state name to its initial value
         (``{"x": …, "v": …}``; a system's: ``{"x": …, "v": …, "V": …}``, ``states()``): the
         result is then a dict of state names to arrays, in the recording's units (for a
-        system, ``lssi simulate``'s free run). A system's model takes only a mapping."""
+        system, ``lssi simulate``'s free run). A system's model takes only a mapping. An
+        algebraic electrical equation (``equations()`` key ``V`` or ``i``, no prime: a channel
+        proportional to v, as across a coil of negligible inductance) is computed from the
+        simulated v at every time; its value in ``x0`` is not used."""
         fit = self._fitted()
         if self._is_system():
             return self._simulate_system(x0, t, u)
