@@ -37,6 +37,7 @@ mod system;
 mod system_gate;
 mod system_load;
 mod system_terms;
+mod system_wrong;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;

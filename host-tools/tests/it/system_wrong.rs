@@ -1,0 +1,169 @@
+//! Never a confident wrong system (issue 25): a harvester's model printed with exit 0 has the
+//! truth's terms with coefficients within 10 % (the damping within 25 %), as
+//! `scripts/hostile-system.sh` judges it; else it is withheld (exit 3) with the sentence
+//! naming the terms the recording does not determine. The records are two of that script's
+//! hostile variants (seeds 9706 and 9707), where a model with a wrong damping/coupling split
+//! was printed.
+
+#![allow(clippy::unwrap_used)] // a test fails by panicking
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn lssi(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lssi"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Each equation's terms (sin/cos by kind) and coefficients.
+fn equations(v: &Value) -> BTreeMap<String, BTreeMap<String, f64>> {
+    v["equations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            let terms = e["terms"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|t| {
+                    let name = t["term"].as_str().unwrap();
+                    let key = name.split('(').next().unwrap().to_owned();
+                    (key, t["coef"].as_f64().unwrap())
+                })
+                .collect();
+            (e["target"].as_str().unwrap().to_owned(), terms)
+        })
+        .collect()
+}
+
+/// Generates `args` into `dir`, identifies it (with `extra` flags) and checks the outcome:
+/// the true model within the script's tolerances, or withheld naming why. Returns the exit
+/// status and stderr.
+fn true_or_withheld(dir: &Path, args: &[&str], extra: &[&str]) -> (i32, String) {
+    let path = dir.join("h.csv");
+    let mut gen_args = vec!["gen"];
+    gen_args.extend(args);
+    gen_args.push(path.to_str().unwrap());
+    let g = lssi(&gen_args);
+    assert!(g.status.success(), "{}", String::from_utf8_lossy(&g.stderr));
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("h.json")).unwrap()).unwrap();
+    let mut id_args = vec!["identify", "--json"];
+    id_args.extend(extra);
+    id_args.push(path.to_str().unwrap());
+    let o = lssi(&id_args);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    let code = o.status.code().unwrap();
+    match code {
+        0 => {
+            let got = equations(&serde_json::from_slice(&o.stdout).unwrap());
+            for (target, want) in equations(&truth) {
+                let have = &got[&target];
+                assert_eq!(
+                    have.keys().collect::<Vec<_>>(),
+                    want.keys().collect::<Vec<_>>(),
+                    "{target}: printed {have:?}, truth {want:?}"
+                );
+                for (k, w) in &want {
+                    let tolerance = if k == "v" && target.ends_with("''") {
+                        0.25
+                    } else {
+                        0.10
+                    };
+                    assert!(
+                        (have[k] / w - 1.0).abs() <= tolerance,
+                        "{target}'s {k}: printed {} (truth {w}) with exit 0",
+                        have[k]
+                    );
+                }
+            }
+        }
+        3 => assert!(
+            stderr.contains("no deterministic dynamics found in"),
+            "{stderr}"
+        ),
+        _ => panic!("exit {code}: {stderr}"),
+    }
+    (code, stderr)
+}
+
+/// Seed 9707's record: a bistable piezoelectric harvester, x only, 5 % noise, one tone. The
+/// streaming model's damping and coupling are 2 standard errors from 0 (V 0.0181 ± 0.0092,
+/// truth 0.0157): it was printed; now the gate names them.
+#[test]
+fn a_coupling_two_standard_errors_from_zero_is_not_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, stderr) = true_or_withheld(
+        dir.path(),
+        &[
+            "piezo",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            "3.42",
+            "--omega",
+            "30.46",
+            "--rate",
+            "975",
+            "--t-end",
+            "14.7",
+            "--delta",
+            "0.05",
+            "--observe",
+            "x",
+            "--seed",
+            "9707",
+        ],
+        &["--no-refine"],
+    );
+    assert_eq!(code, 3, "{stderr}");
+    assert!(
+        stderr.contains("does not determine the terms") && stderr.contains("V ("),
+        "{stderr}"
+    );
+}
+
+/// Seed 9706's record: a bistable electromagnetic harvester with an inductive coil (V lags v
+/// by 11°), x only, 0.5 % noise, one tone. Refinement moved V from −0.346 to −0.310 (truth
+/// −0.25) predicting the held-out half no better, and printed ± 0.005: now its ± is at least
+/// the distance between the two fits, and the split is withheld or right.
+#[test]
+fn an_unbacked_refinement_does_not_print_a_tight_wrong_split() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, stderr) = true_or_withheld(
+        dir.path(),
+        &[
+            "electromagnetic",
+            "--electrical",
+            "V",
+            "--coil",
+            "inductive",
+            "--wells",
+            "bistable",
+            "--amplitude",
+            "2.6",
+            "--omega",
+            "39.61",
+            "--rate",
+            "5030",
+            "--t-end",
+            "4.47",
+            "--delta",
+            "0.005",
+            "--observe",
+            "x",
+            "--seed",
+            "9706",
+        ],
+        &[],
+    );
+    if code == 3 {
+        assert!(stderr.contains("damping and the coupling"), "{stderr}");
+    }
+}
