@@ -638,11 +638,6 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     if let Some(why) = undetermined_electrical_terms(&sim, report, data) {
         q.failures.push(why);
     }
-    if q.failures.is_empty()
-        && let Some(why) = undetermined_terms(&sim, report)
-    {
-        q.failures.push(why);
-    }
     q
 }
 
@@ -660,6 +655,11 @@ pub const MIN_DETERMINED_T: f64 = 10.0;
 /// other: models from −0.35 V − 1.03 v to −0.31 V − 1.12 v predict the held-out half within
 /// 0.50 % alike where the harvester's is −0.25 V − 1.26 v (`scripts/hostile-system.sh`, seed
 /// 9706); the least-squares ± (1.38 on V) say so, and the model is withheld, naming the terms.
+///
+/// The check judges the model `lssi identify` prints by default ([`super::identify_system`]
+/// runs it after [`assess`]); with `--no-refine` the streaming model is printed as the device
+/// computes it, beside its least-squares ± (from rows of differentiated data, far wider than
+/// a refined model's: a broadband record's true damping at 2 of them from 0).
 pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<String> {
     let d = sim.displacements;
     let mut found = Vec::new();
