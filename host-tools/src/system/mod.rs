@@ -706,6 +706,7 @@ pub fn identify_system(
     }
     let mut quality = quality::assess(&report, data);
     if !no_refine
+        && report.model == "refined"
         && quality.passed()
         && let Some(sim) = simulate::SystemSim::of_report(&report)
         && let Some(why) = quality::undetermined_terms(&sim, &report)
