@@ -704,15 +704,7 @@ pub fn identify_system(
     if !no_refine {
         refine_report(&mut report, data);
     }
-    let mut quality = quality::assess(&report, data);
-    if !no_refine
-        && report.model == "refined"
-        && quality.passed()
-        && let Some(sim) = simulate::SystemSim::of_report(&report)
-        && let Some(why) = quality::undetermined_terms(&sim, &report)
-    {
-        quality.failures.push(why);
-    }
+    let quality = quality::assess(&report, data);
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
         let sentence = quality::refusal(data, &quality);
