@@ -14,6 +14,8 @@
 #
 #   SEEDS="$(seq 9701 9730)" JOBS=2 scripts/hostile-system.sh
 #
+# KEEP=DIR keeps each seed's recording, truth and output (DIR/sSEED.csv, .json, .out) to rerun
+# one by hand.
 # Needs target/release/lssi (cargo build --release -p lssi-host) and python3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,7 +26,8 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 python3 - "$L" "$work" "$JOBS" $SEEDS <<'PY'
-import concurrent.futures as cf, json, math, os, random, subprocess, sys
+import concurrent.futures as cf, json, math, os, random, shutil, subprocess, sys
+KEEP = os.environ.get('KEEP')
 L, work, jobs, seeds = sys.argv[1], sys.argv[2], int(sys.argv[3]), [int(s) for s in sys.argv[4:]]
 
 def variant(seed):
@@ -70,6 +73,12 @@ def run(seed):
     subprocess.run(args + [path], check=True, capture_output=True)
     truth = json.load(open(path[:-4] + '.json'))
     out = subprocess.run([L, 'identify', '--json', path], capture_output=True, text=True)
+    if KEEP:
+        os.makedirs(KEEP, exist_ok=True)
+        shutil.copy(path, KEEP)
+        shutil.copy(path[:-4] + '.json', KEEP)
+        with open(os.path.join(KEEP, f's{seed}.out'), 'w') as f:
+            f.write(f'exit {out.returncode}\n{out.stdout}\n{out.stderr}')
     os.remove(path)
     if out.returncode == 0:
         got = {e['target']: {key(t['term']): t['coef'] for t in e['terms']}

@@ -643,6 +643,77 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     q
 }
 
+/// A printed coefficient must be at least this many of its standard errors from 0
+/// ([`undetermined_terms`]): one standard error then a tenth of it at most, so that the
+/// equation printed is the harvester's to within a few tenths of each coefficient and not one
+/// of a family the record cannot tell apart.
+pub const MIN_DETERMINED_T: f64 = 10.0;
+
+/// See [`assess`]: any equation's terms whose printed coefficient is within
+/// [`MIN_DETERMINED_T`] standard errors of 0 (the report's: the refinement's, widened when
+/// refinement did not predict the held-out half better, or the streaming least-squares
+/// fit's). Under a single forcing tone in steady state the electrical state is nearly a lagged
+/// copy of the velocity, and the beam's damping −c v and the coupling χV trade against each
+/// other: models from −0.35 V − 1.03 v to −0.31 V − 1.12 v predict the held-out half within
+/// 0.50 % alike where the harvester's is −0.25 V − 1.26 v (`scripts/hostile-system.sh`, seed
+/// 9706); the least-squares ± (1.38 on V) say so, and the model is withheld, naming the terms.
+///
+/// Not wired into the gate: at any threshold it does not separate seed 9706's wrong split
+/// (V −0.310 ± 0.036 widened, 8.6 of them from 0, truth −0.25) from a right one (`lssi gen
+/// electromagnetic --wells bistable --inductance 100 --electrical V --delta 0.01 --seed 7`:
+/// V −0.252 ± 0.029, 8.7 of them, truth −0.25); it is kept for the next session's work.
+/// It was meant to judge a refined model,
+/// not the streaming one (with `--no-refine`, or when refinement predicts the held-out half
+/// worse): the streaming least-squares ± (from rows of differentiated data) do not tell a
+/// right split from a wrong one. A broadband record's true damping is 2 of them from 0, a
+/// chaotic bistable electromagnetic record's true coupling 0.8 of them (`lssi gen
+/// electromagnetic --wells bistable --inductance 100 --electrical i --delta 0.01 --seed 5`,
+/// i −231 ± 300, truth −250), where a wrong one is 7 (seed 9767: V 0.0231 ± 0.0033, truth
+/// 0.0157).
+pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<String> {
+    let d = sim.displacements;
+    let mut found = Vec::new();
+    let mut split = false;
+    for (k, e) in report.equations.iter().enumerate() {
+        let weak: Vec<String> = e
+            .terms
+            .iter()
+            .filter_map(|t| {
+                let se = t.se.filter(|s| s.is_finite())?;
+                (!(t.coef.abs() >= MIN_DETERMINED_T * se))
+                    .then(|| format!("{} ({:.3e} ± {se:.1e})", t.term, t.coef))
+            })
+            .collect();
+        if weak.is_empty() {
+            continue;
+        }
+        // A displacement's damping or coupling among them: the single tone's split.
+        if k < d
+            && let Some(eq) = sim.equations.get(k)
+        {
+            split |= active_monomials(eq).into_iter().any(|m| {
+                let linear = m.iter().sum::<u8>() == 1;
+                let name = SimTerm::Monomial(m).name_in(&sim.electrical, d).to_string();
+                let named = weak.iter().any(|w| w.starts_with(&format!("{name} (")));
+                named && linear && (m[1] == 1 || m[5] == 1 || m[2] == 1 || m[3] == 1)
+            });
+        }
+        found.push(format!("{}'s {}", e.target, weak.join(", ")));
+    }
+    if found.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "the recording does not determine the terms {} (each within {MIN_DETERMINED_T:.0} standard errors of 0: at least a tenth of the coefficient uncertain){}",
+        found.join("; "),
+        if split {
+            ": under a single forcing tone the electrical state moves nearly as a lagged copy of the velocity, so the beam's damping and the coupling trade against each other and only their combined effect is determined; a transient, a sweep or a broadband excitation separates them"
+        } else {
+            ""
+        }
+    ))
+}
+
 /// An equation's active terms (non-zero coefficients).
 fn active(eq: &[(SimTerm, f64)]) -> Vec<SimTerm> {
     eq.iter()

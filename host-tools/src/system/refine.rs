@@ -41,6 +41,19 @@ const STATE_ITERATIONS: usize = 8;
 /// taken: both usually reach the noise floor there.
 pub const NOT_WORSE: f64 = 0.005;
 
+/// How much better (relative) the refined model must predict the held-out half than the
+/// streaming one for its own standard errors to stand ([`improved`]): below that the two fit
+/// the record alike, at its noise floor, and the record does not choose between their
+/// coefficients.
+pub const IMPROVED: f64 = 0.05;
+
+/// Whether the refined model predicted the held-out half better than the streaming one by
+/// more than [`IMPROVED`] (or the streaming model's could not be scored).
+pub fn improved(info: &Refinement) -> bool {
+    info.held_out_refined_percent < info.held_out_streaming_percent * (1.0 - IMPROVED)
+        || !info.held_out_streaming_percent.is_finite()
+}
+
 /// Over this held-out error (%) over segments of eight periods the record is taken for
 /// chaotic, and the held-out comparison uses segments of two.
 pub const CHAOTIC_PERCENT: f64 = 25.0;

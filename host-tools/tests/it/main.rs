@@ -41,6 +41,7 @@ mod system_gate;
 mod system_load;
 mod system_power;
 mod system_terms;
+mod system_wrong;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;
