@@ -410,7 +410,11 @@ pub fn harvester(
     let start = first_state(data);
     let bound = rms(&r.x) + rms(measured) + 1.0;
     let power_of = |model: &SystemSim, u: &[f64], load: f64| -> Option<f64> {
-        let states = model.run(&r.t, u, start, bound);
+        // A small load's fast electrical decay λ′ is stiff for RK4 at the sample period
+        // (stable while λ′ h ≲ 2.8): steps of λ′ h ≤ 1.
+        let decay = coefficient(model, 1 + kv, e_term).abs() * report.sample_period;
+        let substeps = (decay.ceil() as usize).clamp(1, 1024);
+        let states = model.run_substeps(&r.t, u, start, bound, substeps);
         let v: Vec<f64> = states.iter().map(|s| s[2 + kv]).collect();
         mean_square(&v).map(|m| circuit.power(m, load))
     };
