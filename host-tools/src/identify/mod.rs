@@ -15,7 +15,7 @@ pub mod blemish;
 pub mod device_rate;
 mod omega;
 pub mod pipeline;
-mod polish;
+pub mod polish;
 pub mod quality;
 pub mod refine;
 pub mod simulate;
@@ -295,7 +295,7 @@ pub fn configure(
     // Ω from the spectrum is 10⁻³ rad/s off on a 20 s record; the weak form's rows find it
     // closer (`polish`).
     if estimated {
-        config.omega = polish::polish_omega(recording, &config, config.omega);
+        config.omega = polish::polish_omega(recording, &config, config.omega, &[]);
     }
     crate::identify::blemish::refuse_if_broken(&scan, &config, &recording.path).map_err(|e| {
         time_axis(recording).map_or(e, |why| {

@@ -39,14 +39,18 @@ struct Sums {
 }
 
 /// Ω polished on the weak form's rows (see the module's text), or `omega` as it is when the
-/// weak form is off, the record is too short for it, or no ω nearby explains more.
-pub fn polish_omega(recording: &Recording, config: &Config, omega: f64) -> f64 {
+/// weak form is off, the record is too short for it, or no ω nearby explains more. `extra`:
+/// channels the equation also holds (a harvester's V or i, a second displacement), each a
+/// column of its smoothed value: without them the fit leans on the forcing's phase to stand
+/// in for them, and Ω comes out biased (a system's piezo record at 2,920 Hz: 2.8 × 10⁻³ rad/s
+/// off, a spurious sin(Ωt) of 1.8 % of the forcing).
+pub fn polish_omega(recording: &Recording, config: &Config, omega: f64, extra: &[&[f64]]) -> f64 {
     let harmonics = usize::from(config.library.harmonics);
     let width = usize::from(config.test_rows);
     if harmonics == 0 || width < 4 || !(omega.is_finite() && omega > 0.0) {
         return omega;
     }
-    let Some(sums) = sums(recording, config, width) else {
+    let Some(sums) = sums(recording, config, width, extra) else {
         return omega;
     };
     let p = Library::<TERM_CAPACITY>::new(&LibraryConfig {
@@ -54,7 +58,8 @@ pub fn polish_omega(recording: &Recording, config: &Config, omega: f64) -> f64 {
         input: false,
         ..config.library
     })
-    .map_or(0, |l| l.len());
+    .map_or(0, |l| l.len())
+        + extra.len();
     if p == 0 || p + 2 * harmonics > TERM_CAPACITY || sums.targets.len() < 4 * (p + 2 * harmonics) {
         return omega;
     }
@@ -123,7 +128,7 @@ pub fn polish_omega(recording: &Recording, config: &Config, omega: f64) -> f64 {
 /// takes them: rows at every sample (the derivative window's estimates, the target from v
 /// when it is measured), φ(τ) = (1 − τ²)⁴ over `width` rows normalised to sum 1, a sum
 /// started every quarter of `width`.
-fn sums(recording: &Recording, config: &Config, width: usize) -> Option<Sums> {
+fn sums(recording: &Recording, config: &Config, width: usize, extra: &[&[f64]]) -> Option<Sums> {
     let n = config.window;
     let taps: Taps<f64, WINDOW_CAPACITY> = Taps::design(
         n,
@@ -143,6 +148,10 @@ fn sums(recording: &Recording, config: &Config, width: usize) -> Option<Sums> {
         .repaired(recording, 1)
         .filter(|_| recording.v.is_some());
     let clean = CleanWindows::new(&scan.with_repairs_kept(), n);
+    let q = library.len();
+    if q + extra.len() > TERM_CAPACITY || extra.iter().any(|c| c.len() != x.len()) {
+        return None;
+    }
     // Rows at every sample; a run of consecutive rows is cut where a window is not clean.
     let mut runs: Vec<Vec<(f64, [f64; TERM_CAPACITY], f64)>> = vec![Vec::new()];
     let mut start = 0;
@@ -165,11 +174,17 @@ fn sums(recording: &Recording, config: &Config, width: usize) -> Option<Sums> {
                 ),
             };
             let t = recording.t[start + (n - 1) / 2];
-            (xh.is_finite() && vh.is_finite() && yh.is_finite() && t.is_finite()).then(|| {
-                let mut row = [0.0; TERM_CAPACITY];
-                library.evaluate(xh, vh, 0.0, 0.0, &mut row);
-                (t, row, yh)
-            })
+            let mut row = [0.0; TERM_CAPACITY];
+            library.evaluate(xh, vh, 0.0, 0.0, &mut row);
+            for (j, c) in extra.iter().enumerate() {
+                row[q + j] = taps.apply(0, &c[start..start + n], &[]);
+            }
+            (xh.is_finite()
+                && vh.is_finite()
+                && yh.is_finite()
+                && t.is_finite()
+                && row[q..q + extra.len()].iter().all(|e| e.is_finite()))
+            .then_some((t, row, yh))
         });
         match row.flatten() {
             Some(r) => runs.last_mut()?.push(r),
@@ -194,7 +209,7 @@ fn sums(recording: &Recording, config: &Config, width: usize) -> Option<Sums> {
         raw.iter().map(|w| w / sum).collect()
     };
     let hop = (width / 4).max(1);
-    let p = library.len();
+    let p = q + extra.len();
     let mut out = Sums {
         times: Vec::with_capacity(runs.len()),
         weights,

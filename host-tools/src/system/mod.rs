@@ -563,8 +563,22 @@ pub fn configure(
             "{file}: --noise-correction is not available for a system of equations (a recording with an electrical channel)."
         )));
     }
-    let (base, estimated) =
+    let (mut base, estimated) =
         identify::configure(&data.recording, options).map_err(|e| CliError::Identify(e.0))?;
+    // Ω was polished on the mechanical library alone: polished again with the equation's
+    // other channels (the electrical ones, a second displacement), which it otherwise leans
+    // on the forcing's phase to stand in for (a spurious sin(Ωt) beside the cos).
+    if estimated {
+        let mut extra: Vec<&[f64]> = data
+            .electrical
+            .iter()
+            .map(|c| c.values.as_slice())
+            .collect();
+        if let Some(second) = &data.second {
+            extra.push(second.x.as_slice());
+        }
+        base.omega = identify::polish::polish_omega(&data.recording, &base, base.omega, &extra);
+    }
     let config = SystemConfig {
         base,
         electrical: data.kinds(),

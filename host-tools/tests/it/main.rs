@@ -39,6 +39,7 @@ mod system;
 mod system_coil;
 mod system_gate;
 mod system_load;
+mod system_omega;
 mod system_power;
 mod system_terms;
 mod system_wrong;
