@@ -509,39 +509,30 @@ pub const OUTLASTS: f64 = 3.0;
 /// oscillator without forcing only loses energy, so a record whose frequency drifts while it
 /// grows is driven (a ringdown's frequency drifts while it decays).
 pub fn grows(recording: &Recording) -> bool {
-    let scan = Scan::of(recording);
-    let Some(stretch) = scan.stretches().into_iter().max_by_key(|r| r.len()) else {
-        return false;
-    };
-    let x = &recording.x[stretch];
-    let quarter = x.len() / 4;
-    if quarter < 16 {
-        return false;
-    }
-    let rms = |s: &[f64]| {
-        let mean = s.iter().sum::<f64>() / s.len() as f64;
-        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
-    };
-    rms(&x[x.len() - quarter..]) > GROWS * rms(&x[..quarter])
+    quarters_rms(recording).is_some_and(|(first, last)| last > GROWS * first)
 }
 
 /// Whether x keeps its oscillation over the record: its RMS about its mean over the last
 /// quarter of the longest clean stretch at least [`KEEPS`] times over the first quarter.
 pub fn keeps_amplitude(recording: &Recording) -> bool {
+    quarters_rms(recording).is_some_and(|(first, last)| last >= KEEPS * first)
+}
+
+/// x's RMS about its mean over the first and the last quarter of the record's longest clean
+/// stretch (`None` when a quarter is under 16 samples).
+fn quarters_rms(recording: &Recording) -> Option<(f64, f64)> {
     let scan = Scan::of(recording);
-    let Some(stretch) = scan.stretches().into_iter().max_by_key(|r| r.len()) else {
-        return false;
-    };
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
     let x = &recording.x[stretch];
     let quarter = x.len() / 4;
     if quarter < 16 {
-        return false;
+        return None;
     }
     let rms = |s: &[f64]| {
         let mean = s.iter().sum::<f64>() / s.len() as f64;
         (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
     };
-    rms(&x[x.len() - quarter..]) >= KEEPS * rms(&x[..quarter])
+    Some((rms(&x[..quarter]), rms(&x[x.len() - quarter..])))
 }
 
 /// The share of its first quarter's oscillation x must keep over its last for

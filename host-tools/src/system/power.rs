@@ -622,11 +622,7 @@ impl Harvester {
             Transducer::Electromagnetic => format!(
                 "electromagnetic harvester at the recorded load R = {} Ω, {} (per-unit-mass forms: x'' ∋ χ {e}, {e}' = −λ {e} − κ v; SI units when x is in m)\n",
                 super::report::number(self.load_ohms),
-                self.coil_ohms
-                    .map_or("coil resistance not given".to_owned(), |c| format!(
-                        "coil R_c = {} Ω",
-                        super::report::number(c)
-                    ))
+                self.coil_text()
             ),
         };
         out.push_str(&format!(
@@ -669,6 +665,14 @@ impl Harvester {
         out
     }
 
+    /// The coil's resistance as the text tables name it.
+    fn coil_text(&self) -> String {
+        self.coil_ohms
+            .map_or("coil resistance not given".to_owned(), |c| {
+                format!("coil R_c = {} Ω", super::report::number(c))
+            })
+    }
+
     /// The text table of an algebraic electrical equation's harvester ([`proportional_terms`]).
     fn render_proportional(&self) -> String {
         let n = |v: Option<f64>| v.map_or("-".to_owned(), super::report::number);
@@ -676,11 +680,7 @@ impl Harvester {
         let mut out = format!(
             "electromagnetic harvester at the recorded load R = {} Ω, {}, of negligible inductance (x'' over the mechanical states, {e} = c v algebraic; SI units when x is in m)\n",
             super::report::number(self.load_ohms),
-            self.coil_ohms
-                .map_or("coil resistance not given".to_owned(), |c| format!(
-                    "coil R_c = {} Ω",
-                    super::report::number(c)
-                ))
+            self.coil_text()
         );
         out.push_str(&format!(
             "  {e} = c v: c = {} {}   Φ = c (R_c + R){} = {} N/A   stiffness per mass k/m = {} 1/s² (at x = {})   damping per mass, beam + electrical = {} 1/s\n",
