@@ -786,13 +786,27 @@ fn k_text(k: u8) -> String {
     if k == 0 { "off".into() } else { k.to_string() }
 }
 
+/// Ω as the text report says it: its value where the library had harmonics of it, else
+/// that there were none (a model driven by `u` has no Ω; the JSON keeps its placeholder).
+pub fn omega_text(omega: f64, estimated: bool, harmonics: bool) -> String {
+    if harmonics {
+        format!(
+            "Ω = {} rad/s{}",
+            number(omega),
+            if estimated { " (estimated)" } else { "" }
+        )
+    } else {
+        "Ω: none (no harmonics in the library)".to_owned()
+    }
+}
+
 /// The human-readable report.
 pub fn render(report: &Report) -> String {
     let mut out = String::new();
     out.push_str(&equation(&report.terms));
     out.push('\n');
     out.push_str(&format!(
-        "K: x = {}, v = {}   window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   {}\n",
+        "K: x = {}, v = {}   window: {} samples, degree {}{}   {}   samples: {} ({} rejected)   {}\n",
         k_text(report.k.x),
         k_text(report.k.v),
         report.window,
@@ -802,8 +816,16 @@ pub fn render(report: &Report) -> String {
         } else {
             String::new()
         },
-        number(report.omega),
-        if report.omega_estimated { " (estimated)" } else { "" },
+        omega_text(
+            report.omega,
+            report.omega_estimated,
+            report
+                .solutions
+                .iter()
+                .flat_map(|s| s.terms.iter().map(String::as_str))
+                .chain(report.terms.iter().map(|t| t.term.as_str()))
+                .any(|t| t.contains("t)"))
+        ),
         report.samples,
         report.rejected,
         report.precision

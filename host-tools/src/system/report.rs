@@ -210,11 +210,11 @@ impl SystemReport {
         out.push_str(&format!("model: {}\n", self.note));
         out.push_str(&format!("  ± {}\n", self.standard_errors));
         let mut inputs = Vec::new();
-        if self
+        let harmonic = self
             .equations
             .iter()
-            .any(|e| e.terms.iter().any(|t| t.term.contains("t)")))
-        {
+            .any(|e| e.terms.iter().any(|t| t.term.contains("t)")));
+        if harmonic {
             inputs.push(format!("harmonics of Ω = {} rad/s", number(self.omega)));
         }
         if self
@@ -244,7 +244,7 @@ impl SystemReport {
             ));
         }
         out.push_str(&format!(
-            "window: {} samples, degree {}{}   Ω = {} rad/s{}   samples: {} ({} rejected)   coupling order {}   {}\n",
+            "window: {} samples, degree {}{}   {}   samples: {} ({} rejected)   coupling order {}   {}\n",
             self.window,
             self.degree,
             if self.test_rows > 0 {
@@ -252,8 +252,7 @@ impl SystemReport {
             } else {
                 String::new()
             },
-            number(self.omega),
-            if self.omega_estimated { " (estimated)" } else { "" },
+            crate::identify::omega_text(self.omega, self.omega_estimated, harmonic),
             self.samples,
             self.rejected,
             self.coupling_order,

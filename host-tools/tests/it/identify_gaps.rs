@@ -256,3 +256,25 @@ fn sweep_ranges_are_read_to_the_record_ends() {
         );
     }
 }
+
+#[test]
+fn a_model_driven_by_u_names_no_omega() {
+    // With u the library has no harmonics: the report had printed "Ω = 1.0000 rad/s", a
+    // placeholder a user would read as the forcing's frequency.
+    let dir = tempfile::tempdir().unwrap();
+    for (name, args, omega) in [
+        ("u.csv", &["--input", "--t-end", "6"][..], false),
+        ("cos.csv", &["--t-end", "6"][..], true),
+    ] {
+        let path = generate(dir.path(), name, args);
+        let out = Command::new(LSSI)
+            .args(["identify", "--no-refine"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{name}: {text}");
+        assert_eq!(text.contains("Ω: none (no harmonics in the library)"), !omega, "{text}");
+        assert_eq!(text.contains("Ω = 21.4"), omega, "{text}");
+    }
+}
