@@ -274,7 +274,11 @@ fn a_model_driven_by_u_names_no_omega() {
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success(), "{name}: {text}");
-        assert_eq!(text.contains("Ω: none (no harmonics in the library)"), !omega, "{text}");
+        assert_eq!(
+            text.contains("Ω: none (no harmonics in the library)"),
+            !omega,
+            "{text}"
+        );
         assert_eq!(text.contains("Ω = 21.4"), omega, "{text}");
     }
 }
