@@ -14,6 +14,7 @@ pub mod batch;
 pub mod blemish;
 pub mod device_rate;
 mod omega;
+pub mod orbit;
 pub mod pipeline;
 pub mod polish;
 pub mod quality;

@@ -106,6 +106,7 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
         .or_else(|| quality::unresolved_term(&report))
         .or(contradicted)
         .or_else(|| quality::undamped_forced(&report))
+        .or_else(|| crate::identify::orbit::unforced_orbit(recording, &report))
     {
         let sentence = format!(
             "no deterministic dynamics found in {}: {why}.",

@@ -759,6 +759,9 @@ pub fn assess(
         quality.failures = vec![sweep.sentence()];
         return quality;
     }
+    if let Some(why) = crate::identify::orbit::unrecorded_forcing(recording, report, follows) {
+        quality.failures.push(why);
+    }
     if let Some(other) = other {
         let names = |r: &Report| r.terms.iter().map(|t| t.term.clone()).collect::<Vec<_>>();
         let agree = names(report) == names(other);

@@ -20,6 +20,7 @@ mod low_rate;
 mod monitor_port;
 mod ode;
 mod offsets;
+mod orbits;
 mod plot;
 mod quality;
 mod recording;

@@ -1,0 +1,141 @@
+//! One steady orbit explained without forcing: when x repeats one oscillation of steady
+//! amplitude (a forced steady state, or a self-excited limit cycle), every point of the orbit
+//! is a distinct (x, v), so some x'' = f(x, v) always fits it, and a library's polynomial
+//! terms can stand in for the forcing. A model with no forcing term (no u, no harmonic) and
+//! terms in v is then a fit of that one orbit, not the harvester's equation: a self-sustained
+//! oscillation whose energy the v terms feed and drain.
+//!
+//! Found on a measured magneto-mechanical beam (FrID's record, its forced first 11 s: 42.05
+//! Hz, amplitude steady to 0.2 %): with the forcing's command as u, `lssi identify` printed
+//! `x'' = 4.11 + 2.54e5 x − 3.61 v − 2.0e8 x² − 1007 v² − 6.4e12 x³ − 8.5e7 x·v² + 2584 v³`
+//! with exit 0 (a double well at ±2.0e-4 for a single-well beam of 37 Hz, u dropped); without
+//! u, the harmonics dropped by refinement, an autonomous model again. A conservative model
+//! (terms in x alone) is let through: an undamped free oscillation is such an orbit, and its
+//! model keeps its energy without any term feeding it.
+
+use crate::identify::Report;
+use crate::identify::blemish::Scan;
+use crate::recording::Recording;
+
+/// Cycles of x needed to call its oscillation steady.
+pub const MIN_CYCLES: usize = 10;
+
+/// The largest coefficient of variation of x's RMS cycle by cycle for one steady orbit: a
+/// forced steady state or a limit cycle holds it to a fraction of a percent (FrID's beam:
+/// 0.2 %); a ringdown, a transient, a random or chaotic response move it by tens of percent.
+pub const MAX_CYCLE_SPREAD: f64 = 0.02;
+
+/// x's cycles on the record's longest clean stretch: the number of whole cycles (between
+/// upward crossings of its mean, with a hysteresis of 0.3 RMS against noise), their mean
+/// frequency (Hz) and the spread of their RMS (its coefficient of variation, or the change
+/// of its mean from the first quarter of the cycles to the last, whichever is larger).
+/// `None` with fewer than
+/// [`MIN_CYCLES`] cycles.
+pub fn cycles(recording: &Recording) -> Option<(usize, f64, f64)> {
+    let scan = Scan::of(recording);
+    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let x = recording.x.get(stretch.clone())?;
+    let t = recording.t.get(stretch)?;
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let rms = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    if !(rms > 0.0) {
+        return None;
+    }
+    let h = 0.3 * rms;
+    let mut up = Vec::new();
+    let mut below = false;
+    for (i, v) in x.iter().enumerate() {
+        let d = v - mean;
+        if d < -h {
+            below = true;
+        } else if below && d > h {
+            below = false;
+            up.push(i);
+        }
+    }
+    if up.len() < MIN_CYCLES + 1 {
+        return None;
+    }
+    let per_cycle: Vec<f64> = up
+        .windows(2)
+        .map(|w| {
+            let c = &x[w[0]..w[1]];
+            (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt()
+        })
+        .collect();
+    let m = per_cycle.iter().sum::<f64>() / per_cycle.len() as f64;
+    let sd =
+        (per_cycle.iter().map(|r| (r - m).powi(2)).sum::<f64>() / per_cycle.len() as f64).sqrt();
+    // A slow ringdown or growth is not one orbit however small its spread: the mean RMS of
+    // the last quarter of the cycles against the first's counts as a spread too.
+    let q = per_cycle.len() / 4;
+    let quarter_mean = |c: &[f64]| c.iter().sum::<f64>() / c.len() as f64;
+    let trend =
+        (quarter_mean(&per_cycle[per_cycle.len() - q..]) - quarter_mean(&per_cycle[..q])).abs() / m;
+    let (first, last) = (*up.first()?, *up.last()?);
+    let seconds = t.get(last)? - t.get(first)?;
+    let hz = per_cycle.len() as f64 / seconds;
+    (m > 0.0 && hz.is_finite()).then_some((per_cycle.len(), hz, (sd / m).max(trend)))
+}
+
+/// Whether the printed model explains one steady orbit of x with no forcing term and terms
+/// in v (module docs). The sentence, or `None`.
+pub fn unforced_orbit(recording: &Recording, report: &Report) -> Option<String> {
+    use lssi_core::Term;
+    let active = || report.model.iter().filter(|(_, c)| *c != 0.0);
+    let driven = active().any(|(t, _)| matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input));
+    let in_v = active().any(|(t, _)| matches!(t, Term::Monomial { pv, .. } if *pv > 0));
+    if driven || !in_v {
+        return None;
+    }
+    steady_orbit(recording)
+}
+
+/// The sentence for one steady orbit of x that the model explains with no forcing term
+/// (when x's cycles spread at most [`MAX_CYCLE_SPREAD`]), or `None`.
+fn steady_orbit(recording: &Recording) -> Option<String> {
+    let (count, hz, spread) = cycles(recording)?;
+    (spread <= MAX_CYCLE_SPREAD).then(|| {
+        format!(
+            "x repeats one steady oscillation ({count} cycles at {hz:.4} Hz, their RMS steady to {:.2} %) and the model explains it with no forcing term{}: one steady orbit cannot tell a restoring force from a forcing or from terms that sustain the orbit by themselves (a self-excited oscillator), so this is a fit of the orbit, not the harvester's equation (if it is forced, give the excitation as u and record its transient or decay as well, or several forcing amplitudes)",
+            100.0 * spread,
+            if recording.u.is_some() {
+                " (u was dropped)"
+            } else {
+                " (no harmonic of Ω)"
+            }
+        )
+    })
+}
+
+/// Whether x keeps oscillating over the record (its last quarter's RMS at least
+/// [`crate::identify::sweep::KEEPS`] of its first's) while the model has no forcing term and
+/// its free run cannot follow it (`follows`, [`crate::identify::sweep::model_follows`]), and
+/// no u column was given: the record is driven by a forcing it does not hold, random or
+/// broadband (ambient vibration), which no autonomous model and no harmonic of one Ω stands
+/// for. Found on a bistable beam under white base acceleration (u not given): `x'' = −7.81e8
+/// x^3` was printed with exit 0 (truth 332 x − 0.40 v − 7.96e8 x³ + u). The sentence, or
+/// `None`.
+pub fn unrecorded_forcing(
+    recording: &Recording,
+    report: &Report,
+    follows: impl FnOnce() -> Option<bool>,
+) -> Option<String> {
+    use lssi_core::Term;
+    let driven = report
+        .model
+        .iter()
+        .any(|(t, c)| *c != 0.0 && matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input));
+    if recording.u.is_some()
+        || driven
+        || report.model.iter().all(|(_, c)| *c == 0.0)
+        || !crate::identify::sweep::keeps_amplitude(recording)
+        || follows() != Some(false)
+    {
+        return None;
+    }
+    steady_orbit(recording).or_else(|| Some(
+        "x keeps oscillating over the record but the model, with no forcing term, cannot follow it from its own state (its free run parts from the recording): the motion is driven by a forcing the recording does not hold, not periodic (random or broadband vibration?), so the model fitted stands for neither; give the excitation's column as u (--u-col)".to_owned(),
+    ))
+}
