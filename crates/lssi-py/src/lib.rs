@@ -74,8 +74,9 @@ fn guarded<R>(doing: &str, f: impl FnOnce() -> Result<R, String>) -> Result<R, E
 /// The host library's sentences with the command's flags replaced by the Python arguments
 /// (`give --omega.` → `give omega=… (rad/s).`, `--omega 50 rad/s` → `omega=50 rad/s`).
 fn python_words(message: &str) -> String {
-    const FLAGS: [(&str, &str); 11] = [
+    const FLAGS: [(&str, &str); 12] = [
         ("give --omega", "give omega=… (rad/s)"),
+        (" (--u-col)", " (u=…)"),
         ("--omega ", "omega="),
         ("--omega", "omega"),
         ("--poly-order", "poly_order"),

@@ -319,3 +319,31 @@ def test_degenerate_inputs_do_not_panic(call):
         call(seconds, x)
     except BaseException as e:  # a PanicException is a BaseException, not an Exception
         assert isinstance(e, ValueError), f"{type(e).__module__}.{type(e).__name__}: {e}"
+
+
+def test_a_forcing_not_recorded_names_the_u_argument():
+    # A linear well swept through its resonance (10 -> 40 rad/s over 20 s, 1 kHz) without
+    # its u: the command's sentence ends "give the excitation's column as u (--u-col)" or
+    # "give the excitation as a u column (--u-col)"; Python names its argument.
+    n, dt = 20000, 0.001
+    t = np.arange(n) * dt
+    w0, w1 = 10.0, 40.0
+    h = dt / 4
+    f = lambda x, v, s: -631.65 * x - 0.4 * v + np.cos(w0 * s + 0.5 * (w1 - w0) / t[-1] * s * s)
+    x = v = 0.0
+    xs = np.empty(n)
+    for i in range(n):
+        xs[i] = x
+        for j in range(4):
+            s = t[i] + j * h
+            k1x, k1v = v, f(x, v, s)
+            k2x, k2v = v + h / 2 * k1v, f(x + h / 2 * k1x, v + h / 2 * k1v, s + h / 2)
+            k3x, k3v = v + h / 2 * k2v, f(x + h / 2 * k2x, v + h / 2 * k2v, s + h / 2)
+            k4x, k4v = v + h * k3v, f(x + h * k3x, v + h * k3v, s + h)
+            x += h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+            v += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    with pytest.raises(ValueError) as e:
+        lssi.Model().fit(xs, t=t)
+    message = str(e.value)
+    assert message.startswith("no deterministic dynamics found in array:"), message
+    assert "(u=…)" in message and "--" not in message, message

@@ -136,6 +136,6 @@ pub fn unrecorded_forcing(
         return None;
     }
     steady_orbit(recording).or_else(|| Some(
-        "x keeps oscillating over the record but the model, with no forcing term, cannot follow it from its own state (its free run parts from the recording): the motion is driven by a forcing the recording does not hold, not periodic (random or broadband vibration?), so the model fitted stands for neither; give the excitation's column as u (--u-col)".to_owned(),
+        "x keeps oscillating over the record but the model, with no forcing term, cannot follow it from its own state (its free run parts from the recording): the motion is driven by a forcing the recording does not hold and that is not one steady tone (swept, random or broadband vibration), so no model without it stands for the harvester; give the excitation's column as u (--u-col)".to_owned(),
     ))
 }
