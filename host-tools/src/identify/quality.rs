@@ -71,12 +71,26 @@ pub struct Quality {
     pub precisions_agree: Option<bool>,
     /// The reasons the model is withheld: empty when it passed.
     pub failures: Vec<String>,
+    /// How many of `failures` are the streaming model's simulation (its free run diverges, or
+    /// its short-horizon simulation cannot follow the recording): reasons the refined model,
+    /// whose coefficients are fitted on simulation error, is judged on again
+    /// ([`simulation_passes`]) before the model is withheld.
+    pub simulation_failures: usize,
 }
 
 impl Quality {
     /// Whether every check passed.
     pub fn passed(&self) -> bool {
         self.failures.is_empty()
+    }
+
+    /// Whether every failure is one of the streaming model's simulation: refinement, which
+    /// fits the coefficients on simulation error, may give a model that passes them
+    /// ([`simulation_passes`]). At a few tens of samples a period the derivatives the
+    /// streaming identifier fits are biased and its model cannot follow the record; the
+    /// refined model can.
+    pub fn only_simulation_failed(&self) -> bool {
+        !self.failures.is_empty() && self.simulation_failures == self.failures.len()
     }
 }
 
@@ -651,6 +665,56 @@ pub fn unresolved_damping(check: &crate::identify::refine::Check) -> Option<Stri
     ))
 }
 
+/// The short-horizon check on `report`: the sentence when its simulation, over windows of
+/// [`HORIZON_PERIODS`] periods each from its fitted state, cannot follow the recording (median
+/// NRMSE over [`MAX_SHORT_HORIZON_NRMSE`] %) or misses it by more than [`MAX_BEYOND_NOISE`] %
+/// beyond the noise; `None` when it follows (or cannot be measured).
+pub fn short_horizon_failure(recording: &Recording, report: &Report) -> Option<String> {
+    let h = short_horizon(recording, report)?;
+    let over = format!(
+        "over {HORIZON_PERIODS} periods of its dominant frequency or forcing ({:.3} s) from fitted initial states",
+        h.seconds
+    );
+    if !(h.nrmse_percent <= MAX_SHORT_HORIZON_NRMSE) {
+        Some(format!(
+            "the model's simulation cannot follow the recording {over} (median NRMSE {} over {} windows; at most {MAX_SHORT_HORIZON_NRMSE:.0} %)",
+            if h.nrmse_percent.is_finite() {
+                format!("{:.0} %", h.nrmse_percent)
+            } else {
+                "unbounded: the simulation diverges".to_owned()
+            },
+            h.windows
+        ))
+    } else if h.beyond_noise_percent() > MAX_BEYOND_NOISE {
+        Some(format!(
+            "the model's simulation misses the recording {over} by {:.0} % of x's standard deviation beyond its noise ({:.1} %; median of {} windows; at most {MAX_BEYOND_NOISE:.0} %)",
+            h.beyond_noise_percent(),
+            h.noise_percent.unwrap_or(0.0),
+            h.windows
+        ))
+    } else {
+        None
+    }
+}
+
+/// Whether `report` (a refined model, after the streaming one failed only its simulation
+/// checks: [`Quality::only_simulation_failed`]) passes the gate's simulation checks and the
+/// collinearity of its terms, on the recording as given (the report's offsets are those of
+/// the recording as given): its free run stays bounded, its short-horizon simulation follows
+/// the recording, and its terms' columns are not collinear.
+pub fn simulation_passes(recording: &Recording, report: &Report) -> bool {
+    if report.terms.is_empty() || free_run_stable(recording, report) == Some(false) {
+        return false;
+    }
+    if short_horizon_failure(recording, report).is_some() {
+        return false;
+    }
+    !matches!(
+        collinearity(recording, report),
+        Some((condition, names)) if condition > MAX_CONDITION && !names.is_empty()
+    )
+}
+
 /// Runs the checks on `report` (made from `recording` with `config`); `other` is the same
 /// recording identified in the other precision, if it was.
 pub fn assess(
@@ -664,6 +728,7 @@ pub fn assess(
         stable: None,
         precisions_agree: None,
         failures: Vec::new(),
+        simulation_failures: 0,
     };
     if let Some(why) = constant(recording) {
         quality.failures.push(why);
@@ -693,32 +758,13 @@ pub fn assess(
         quality.failures.push(format!(
             "the model's free run from the recording's first state diverges (leaves {MAX_EXCURSION} times the recorded range of x)"
         ));
+        quality.simulation_failures += 1;
     }
     if quality.stable != Some(false)
-        && let Some(h) = short_horizon(recording, report)
+        && let Some(why) = short_horizon_failure(recording, report)
     {
-        let over = format!(
-            "over {HORIZON_PERIODS} periods of its dominant frequency or forcing ({:.3} s) from fitted initial states",
-            h.seconds
-        );
-        if !(h.nrmse_percent <= MAX_SHORT_HORIZON_NRMSE) {
-            quality.failures.push(format!(
-                "the model's simulation cannot follow the recording {over} (median NRMSE {} over {} windows; at most {MAX_SHORT_HORIZON_NRMSE:.0} %)",
-                if h.nrmse_percent.is_finite() {
-                    format!("{:.0} %", h.nrmse_percent)
-                } else {
-                    "unbounded: the simulation diverges".to_owned()
-                },
-                h.windows
-            ));
-        } else if h.beyond_noise_percent() > MAX_BEYOND_NOISE {
-            quality.failures.push(format!(
-                "the model's simulation misses the recording {over} by {:.0} % of x's standard deviation beyond its noise ({:.1} %; median of {} windows; at most {MAX_BEYOND_NOISE:.0} %)",
-                h.beyond_noise_percent(),
-                h.noise_percent.unwrap_or(0.0),
-                h.windows
-            ));
-        }
+        quality.failures.push(why);
+        quality.simulation_failures += 1;
     }
     if let Some((condition, names)) = collinearity(recording, report)
         && condition > MAX_CONDITION
@@ -757,6 +803,7 @@ pub fn assess(
         && let Some(sweep) = crate::identify::sweep::sweep(recording)
     {
         quality.failures = vec![sweep.sentence()];
+        quality.simulation_failures = 0;
         return quality;
     }
     if let Some(other) = other {
