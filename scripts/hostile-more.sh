@@ -15,8 +15,10 @@
 #   WRONG       exit 0 with any other model
 # Prints a markdown table (one row a seed) and the counts. With PY=path/to/python (a venv
 # with the lssi package), each file is also fitted through Python (`lssi.identify(path,
-# f32=True)`, the CLI's precision) and a disagreement with the CLI (another model, or a model
-# where the CLI withholds, or the reverse) is counted as "py differs".
+# f32=True)`, the CLI's precision, and `lssi.Model(f32=True).fit(x, t=t, v=v, u=u)` on the
+# columns read by Python's csv module) and a disagreement with the CLI (another model, or a
+# model where the CLI withholds, or the reverse; a withhold is a ValueError) is counted as
+# "py differs".
 #
 #   scripts/hostile-more.sh                         # seeds 20101-20140 (20001-20040 were used to tune)
 #   SEEDS="$(seq 20001 20040)" JOBS=2 scripts/hostile-more.sh
@@ -128,13 +130,35 @@ def classify(truth, model):
     return 'WRONG', eq
 
 PYCODE = r'''
-import json, sys, lssi
-try:
-    m = lssi.identify(sys.argv[1], f32=True)
-    print(json.dumps({"model": json.loads(m.to_json())}))
-except ValueError as e:
-    print(json.dumps({"error": str(e)}))
+import csv, json, sys, numpy as np, lssi
+def go(f):
+    try:
+        return {"model": json.loads(f().to_json())}
+    except ValueError as e:
+        return {"error": str(e)}
+path = sys.argv[1]
+rows = [r for r in csv.reader(open(path, newline=''))]
+head = [h.strip() for h in rows[0]]
+data = np.array([[float(c) for c in r] for r in rows[1:] if r])
+col = lambda n: data[:, head.index(n)] if n in head else None
+print(json.dumps({
+    "identify": go(lambda: lssi.identify(path, f32=True)),
+    "fit": go(lambda: lssi.Model(f32=True).fit(col("x"), t=col("t"), v=col("v"), u=col("u"))),
+}))
 '''
+
+def agree(model, d):
+    """How a Python result agrees with the CLI's (model, or None when withheld/refused)."""
+    if model is None and 'model' in d:
+        return 'differs: a model where the CLI has none'
+    if model is not None and 'error' in d:
+        return 'differs: ValueError ' + d['error'][:80]
+    if model is None:
+        return 'same'
+    a = {t['term']: t['coef'] for t in model['terms']}
+    b = {t['term']: t['coef'] for t in d['model']['terms']}
+    same = set(a) == set(b) and all(abs(a[k] - b[k]) <= 1e-6 * max(abs(a[k]), 1e-300) for k in a)
+    return 'same' if same else f'differs: {b}'
 
 def run(seed):
     p = variant(seed)
@@ -163,20 +187,12 @@ def run(seed):
         try:
             d = json.loads(q.stdout.strip().split('\n')[-1])
         except Exception:
-            d = {'crash': (q.stderr.strip().split('\n') or [''])[-1][:100]}
-        if 'crash' in d:
-            pyres = 'py differs: crash ' + d['crash']
-        elif model is None and 'model' in d:
-            pyres = 'py differs: a model where the CLI has none'
-        elif model is not None and 'error' in d:
-            pyres = 'py differs: ValueError ' + d['error'][:80]
-        elif model is not None:
-            a = {t['term']: t['coef'] for t in model['terms']}
-            b = {t['term']: t['coef'] for t in d['model']['terms']}
-            same = set(a) == set(b) and all(abs(a[k] - b[k]) <= 1e-6 * max(abs(a[k]), 1e-300) for k in a)
-            pyres = 'py same' if same else f'py differs: {b}'
+            d = None
+        if d is None:
+            pyres = 'py differs: crash ' + ((q.stderr.strip().split('\n') or [''])[-1][:100])
         else:
-            pyres = 'py same'
+            a, b = agree(model, d['identify']), agree(model, d['fit'])
+            pyres = 'py same' if a == b == 'same' else f'py differs: identify {a}; fit {b}'
     if not os.environ.get('KEEP'):
         os.remove(path)
     return p, outcome, detail, pyres
