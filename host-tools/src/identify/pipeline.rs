@@ -109,7 +109,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             // Judged on the refined path only: --no-refine prints the device's model as it
             // computes it.
             contradicted = quality::prediction_misses(recording, &check)
-                .or_else(|| quality::unresolved_damping(&check));
+                .or_else(|| quality::unresolved_damping(&check))
+                .or_else(|| quality::unresolved_streaming_term(&check, report.omega));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {
