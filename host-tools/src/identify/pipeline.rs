@@ -72,23 +72,45 @@ pub fn warnings(report: &Report) -> Vec<String> {
 pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Outcome {
     let (mut report, quality) =
         quality::identify_checked(recording, options).map_err(|e| Failure::Error(e.to_string()))?;
+    // A streaming model that failed only the simulation checks (its free run, its
+    // short-horizon simulation) is refined all the same, and the refined model judged on them
+    // again: the gate judges the model it prints. At a few tens of samples a period the
+    // streaming model's derivatives are biased and it cannot follow the record, where the
+    // model refined on simulation error does (issue 25: the damping at a field device's rate).
+    let mut early = None;
     if !quality.passed() {
-        return Err(Failure::Withheld(
-            quality::refusal(recording, &quality),
-            quality.failures,
-            Box::new(report),
-        ));
+        let rescued = (matches!(refine, Refine::Yes) && quality.only_simulation_failed())
+            .then(|| {
+                let check = refine::refine_recording(recording, &report);
+                let mut refined = report.clone();
+                refined.take_refined(&check);
+                (check.chosen == refine::Chosen::Refined
+                    && quality::simulation_passes(recording, &refined))
+                .then_some(check)
+            })
+            .flatten();
+        match rescued {
+            Some(check) => early = Some(check),
+            None => {
+                return Err(Failure::Withheld(
+                    quality::refusal(recording, &quality),
+                    quality.failures,
+                    Box::new(report),
+                ));
+            }
+        }
     }
     let mut warnings = warnings(&report);
     let mut contradicted = None;
     let refined = match refine {
         Refine::Yes => {
-            let check = refine::refine_recording(recording, &report);
+            let check = early.unwrap_or_else(|| refine::refine_recording(recording, &report));
             report.take_refined(&check);
             // Judged on the refined path only: --no-refine prints the device's model as it
             // computes it.
             contradicted = quality::prediction_misses(recording, &check)
-                .or_else(|| quality::unresolved_damping(&check));
+                .or_else(|| quality::unresolved_damping(&check))
+                .or_else(|| quality::unresolved_streaming_term(&check, report.omega));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {

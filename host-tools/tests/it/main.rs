@@ -48,3 +48,4 @@ mod telemetry_fuzz;
 mod time_axis;
 mod track;
 mod twodof;
+mod unseen_sets;

@@ -281,12 +281,25 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
     // on a single well driven hard the streaming selection took x·v + v³ in place of v
     // (issue 25), and no support one term away has v without them.
     let damping = Term::Monomial { px: 0, pv: 1 };
-    let undamped = |m: &SimModel| {
-        !m.terms.iter().any(|(t, c)| *t == damping && *c != 0.0)
-            && m.terms
-                .iter()
-                .any(|(t, c)| *c != 0.0 && matches!(t, Term::Monomial { pv, .. } if pv % 2 == 1))
+    // Or when it has no term odd in v at all while it is driven (sin/cos or u): a forced
+    // model that cannot dissipate lost its damping (issue 25: at a field device's rate, 23
+    // samples a forcing period, the streaming selection kept x³, x·v², cos(Ωt) and neither x
+    // nor v); the linear stiffness x is then added too when it is missing, and backward
+    // elimination drops whichever of the two the record does not resolve.
+    let driven = |m: &SimModel| {
+        m.terms
+            .iter()
+            .any(|(t, c)| *c != 0.0 && matches!(t, Term::Sin(_) | Term::Cos(_) | Term::Input))
     };
+    let odd_in_v = |m: &SimModel| {
+        m.terms
+            .iter()
+            .any(|(t, c)| *c != 0.0 && matches!(t, Term::Monomial { pv, .. } if pv % 2 == 1))
+    };
+    let undamped = |m: &SimModel| {
+        !m.terms.iter().any(|(t, c)| *t == damping && *c != 0.0) && (odd_in_v(m) || driven(m))
+    };
+    let stiffness = Term::Monomial { px: 1, pv: 0 };
     let base_model = recentred_start.as_ref().unwrap_or(model);
     if predictable && undamped(base_model) {
         let mut support: Vec<Term> = base_model
@@ -301,6 +314,13 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
             .position(|t| !matches!(t, Term::Constant | Term::Monomial { px: 1, pv: 0 }))
             .unwrap_or(support.len());
         support.insert(at, damping);
+        if !odd_in_v(base_model) && !support.contains(&stiffness) {
+            let at = support
+                .iter()
+                .position(|t| *t != Term::Constant)
+                .unwrap_or(support.len());
+            support.insert(at, stiffness);
+        }
         if let Some(start) = supports::least_squares_start(&support, base_model, &train, candidates)
         {
             let refined = refine(&start, &train, &on_half);

@@ -85,6 +85,7 @@ pub(super) fn judge(
         stable: None,
         precisions_agree: None,
         failures: Vec::new(),
+        simulation_failures: 0,
     };
     if report.terms.is_empty() {
         quality

@@ -194,6 +194,7 @@ pub fn identify_file_named(
             stable: None,
             precisions_agree: None,
             failures: Vec::new(),
+            simulation_failures: 0,
         },
     };
     if estimated {
