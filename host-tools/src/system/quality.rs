@@ -699,7 +699,10 @@ pub fn excitation_in_circuit(sim: &SystemSim, report: &SystemReport) -> Option<S
             .equations
             .get(k)
             .map_or("the electrical equation", |e| e.target.as_str());
-        found.push(format!("{target} holds the excitation ({})", driven.join(", ")));
+        found.push(format!(
+            "{target} holds the excitation ({})",
+            driven.join(", ")
+        ));
     }
     (!found.is_empty()).then(|| {
         format!(
