@@ -637,9 +637,9 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     } else if let Some(why) = damping_beside_coupling(&sim, report, data) {
         q.failures.push(why);
     }
-    if let Some(why) = excitation_in_circuit(&sim, report) {
+    if let Some(why) = undetermined_electrical_terms(&sim, report, data) {
         q.failures.push(why);
-    } else if let Some(why) = undetermined_electrical_terms(&sim, report, data) {
+    } else if let Some(why) = excitation_in_circuit(&sim, report) {
         q.failures.push(why);
     }
     if q.failures.is_empty()
@@ -731,10 +731,17 @@ pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<Stri
     let d = sim.displacements;
     let mut found = Vec::new();
     let mut split = false;
+    // The streaming least-squares ± (rows of differentiated data) are far wider than what the
+    // record allows for the states' linear terms (a chaotic record's true coupling i −225 ±
+    // 300, a broadband record's true damping 2 of them from 0): of a model not refined, only
+    // the constant and the nonlinear terms are held to them (seed 9977: x² 5101 ± 16000
+    // beside the truth's x and x³).
+    let refined = report.model == "refined";
     for (k, e) in report.equations.iter().enumerate() {
         let weak: Vec<String> = e
             .terms
             .iter()
+            .filter(|t| refined || t.term == "1" || t.term.contains(['^', '*']))
             .filter_map(|t| {
                 let se = t.se.filter(|s| s.is_finite())?;
                 (!(t.coef.abs() >= MIN_DETERMINED_T * se))
