@@ -35,7 +35,13 @@
 //!    in an electrical equation holding the excitation's harmonics, refitted on the record
 //!    (or as refined), none is within [`MIN_ELECTRICAL_T`] standard errors of 0 (a
 //!    spurious V' = … + x + sin + cos, nearly 0 on a single tone's steady state, passes every
-//!    other check).
+//!    other check), and **no electrical equation holds the excitation**
+//!    ([`excitation_in_circuit`]: a circuit is driven through the motion).
+//! 8. **Every printed term is determined** ([`undetermined_terms`]): a refined model's terms
+//!    (± widened to the move between the first half's and the whole record's refinement) and a
+//!    streaming model's constant and nonlinear terms at least [`MIN_DETERMINED_T`] of their ±
+//!    from 0; a damping/coupling pair that is not is named as the single tone's split.
+//! 9. **A model of v integrated is confirmed by refinement** ([`integrated_unconfirmed`]).
 
 use serde::Serialize;
 
