@@ -35,7 +35,13 @@
 //!    in an electrical equation holding the excitation's harmonics, refitted on the record
 //!    (or as refined), none is within [`MIN_ELECTRICAL_T`] standard errors of 0 (a
 //!    spurious V' = … + x + sin + cos, nearly 0 on a single tone's steady state, passes every
-//!    other check).
+//!    other check), and **no electrical equation holds the excitation**
+//!    ([`excitation_in_circuit`]: a circuit is driven through the motion).
+//! 8. **Every printed term is determined** ([`undetermined_terms`]): a refined model's terms
+//!    (± widened to the move between the first half's and the whole record's refinement) and a
+//!    streaming model's constant and nonlinear terms at least [`MIN_DETERMINED_T`] of their ±
+//!    from 0; a damping/coupling pair that is not is named as the single tone's split.
+//! 9. **A model of v integrated is confirmed by refinement** ([`integrated_unconfirmed`]).
 
 use serde::Serialize;
 
@@ -639,45 +645,109 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     }
     if let Some(why) = undetermined_electrical_terms(&sim, report, data) {
         q.failures.push(why);
+    } else if let Some(why) = excitation_in_circuit(&sim, report) {
+        q.failures.push(why);
+    }
+    if q.failures.is_empty()
+        && let Some(why) = undetermined_terms(&sim, report)
+    {
+        q.failures.push(why);
+    }
+    if q.failures.is_empty()
+        && let Some(why) = integrated_unconfirmed(report, data)
+    {
+        q.failures.push(why);
     }
     q
 }
 
+/// See [`assess`]: a model of a recording whose x is v integrated, when refinement on
+/// simulation error did not confirm it (refined on the first half, it predicted the second
+/// half worse than the streaming model). The integral's offset is not measured (the
+/// transient's start and the mean are lost with the drift removal), so the streaming fit's
+/// terms in x carry a constant the record cannot place, and its least-squares ± (rows of
+/// differentiated data) do not cover it: `scripts/hostile-system.sh` printed x'' with a
+/// spurious sin Ωt, a constant, x² or v², or χ 20–90 % off with exit 0 on records of v alone at
+/// 0–0.5 % noise (seeds 9910, 9974, 9978), each after refinement was not taken, and gave a
+/// true model on none of its 11 records of v alone.
+pub fn integrated_unconfirmed(report: &SystemReport, data: &SystemData) -> Option<String> {
+    data.x_from_v.as_ref()?;
+    let r = report.refinement.as_ref()?;
+    (!r.taken).then(|| {
+        format!(
+            "x is v integrated (its offset is not measured), and refined on simulation error the model predicted the record's second half no better than the streaming fit (NRMSE {:.2} % against {:.2} %): the streaming model's terms rest on the integral's unmeasured offset, and nothing on the record confirms them (record x beside v)",
+            r.held_out_refined_percent, r.held_out_streaming_percent
+        )
+    })
+}
+
+/// See [`assess`]: an electrical equation holding the excitation (sin Ωt, cos Ωt or u). A
+/// harvester's circuit is driven by the motion alone (V' = −λ V − κ v, or its current's
+/// equation): the excitation reaches it only through the beam. Under a single forcing tone in
+/// steady state x, v, the electrical state and the forcing's harmonics move as one sinusoid,
+/// so V' = a x + b v + c sin Ωt + d cos Ωt (without V) follows the record as well as the
+/// circuit's equation does, and its free run passes every other check
+/// (`scripts/hostile-system.sh`, seeds 9907, 9929, 9964: such equations printed with exit 0,
+/// x'''s coupling then 1.6–5.7 times off).
+pub fn excitation_in_circuit(sim: &SystemSim, report: &SystemReport) -> Option<String> {
+    let d = sim.displacements;
+    let mut found = Vec::new();
+    for (k, eq) in sim.equations.iter().enumerate().skip(d) {
+        let driven: Vec<String> = active(eq)
+            .iter()
+            .filter(|t| matches!(t, SimTerm::Sin(_) | SimTerm::Cos(_) | SimTerm::Input))
+            .map(|t| t.name_in(&sim.electrical, d))
+            .collect();
+        if driven.is_empty() {
+            continue;
+        }
+        let target = report
+            .equations
+            .get(k)
+            .map_or("the electrical equation", |e| e.target.as_str());
+        found.push(format!(
+            "{target} holds the excitation ({})",
+            driven.join(", ")
+        ));
+    }
+    (!found.is_empty()).then(|| {
+        format!(
+            "{}, which reaches a harvester's circuit only through the motion: under a single forcing tone x, v, the electrical state and the forcing move as one sinusoid, and such an equation follows the record as well as the circuit's own, so neither it nor the coupling in the motion's equation is the harvester's (a transient, a sweep or a broadband excitation separates them)",
+            found.join("; ")
+        )
+    })
+}
+
 /// A printed coefficient must be at least this many of its standard errors from 0
-/// ([`undetermined_terms`]): one standard error then a tenth of it at most, so that the
-/// equation printed is the harvester's to within a few tenths of each coefficient and not one
-/// of a family the record cannot tell apart.
-pub const MIN_DETERMINED_T: f64 = 10.0;
+/// ([`undetermined_terms`]): within two, the record does not fix even its sign.
+pub const MIN_DETERMINED_T: f64 = 2.0;
 
 /// See [`assess`]: any equation's terms whose printed coefficient is within
-/// [`MIN_DETERMINED_T`] standard errors of 0 (the report's: the refinement's, widened when
-/// refinement did not predict the held-out half better, or the streaming least-squares
-/// fit's). Under a single forcing tone in steady state the electrical state is nearly a lagged
-/// copy of the velocity, and the beam's damping −c v and the coupling χV trade against each
-/// other: models from −0.35 V − 1.03 v to −0.31 V − 1.12 v predict the held-out half within
-/// 0.50 % alike where the harvester's is −0.25 V − 1.26 v (`scripts/hostile-system.sh`, seed
-/// 9706); the least-squares ± (1.38 on V) say so, and the model is withheld, naming the terms.
-///
-/// Not wired into the gate: at any threshold it does not separate seed 9706's wrong split
-/// (V −0.310 ± 0.036 widened, 8.6 of them from 0, truth −0.25) from a right one (`lssi gen
-/// electromagnetic --wells bistable --inductance 100 --electrical V --delta 0.01 --seed 7`:
-/// V −0.252 ± 0.029, 8.7 of them, truth −0.25); it is kept for the next session's work.
-/// It was meant to judge a refined model,
-/// not the streaming one (with `--no-refine`, or when refinement predicts the held-out half
-/// worse): the streaming least-squares ± (from rows of differentiated data) do not tell a
-/// right split from a wrong one. A broadband record's true damping is 2 of them from 0, a
-/// chaotic bistable electromagnetic record's true coupling 0.8 of them (`lssi gen
-/// electromagnetic --wells bistable --inductance 100 --electrical i --delta 0.01 --seed 5`,
-/// i −231 ± 300, truth −250), where a wrong one is 7 (seed 9767: V 0.0231 ± 0.0033, truth
-/// 0.0157).
+/// [`MIN_DETERMINED_T`] standard errors of 0 (the report's: the refinement's, widened to the
+/// move between the first half's and the whole record's refinement and when refinement did
+/// not predict the held-out half better, or the streaming least-squares fit's). Under a
+/// single forcing tone in steady state the electrical state is nearly a lagged copy of the
+/// velocity, and the beam's damping −c v and the coupling χV trade against each other:
+/// `scripts/hostile-system.sh` printed x'' = … (−2.1 ± 9.4) v + (0.15 ± 4.3) V … (seed 9907,
+/// truth −1.26 v − 0.25 V) and (−1.08 ± 12) v + (−0.33 ± 5.3) V (seed 9915) with exit 0. The
+/// model is withheld, naming the terms and, for a displacement's damping or coupling, the
+/// split. A higher threshold (10) did not part right from wrong on the refinement's own ±:
+/// right couplings were 8.7 of them from 0 where a wrong one was 8.6 (seed 9706).
 pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<String> {
     let d = sim.displacements;
     let mut found = Vec::new();
     let mut split = false;
+    // The streaming least-squares ± (rows of differentiated data) are far wider than what the
+    // record allows for the states' linear terms (a chaotic record's true coupling i −225 ±
+    // 300, a broadband record's true damping 2 of them from 0): of a model not refined, only
+    // the constant and the nonlinear terms are held to them (seed 9977: x² 5101 ± 16000
+    // beside the truth's x and x³).
+    let refined = report.model == "refined";
     for (k, e) in report.equations.iter().enumerate() {
         let weak: Vec<String> = e
             .terms
             .iter()
+            .filter(|t| refined || t.term == "1" || t.term.contains(['^', '*']))
             .filter_map(|t| {
                 let se = t.se.filter(|s| s.is_finite())?;
                 (!(t.coef.abs() >= MIN_DETERMINED_T * se))
@@ -704,7 +774,7 @@ pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<Stri
         return None;
     }
     Some(format!(
-        "the recording does not determine the terms {} (each within {MIN_DETERMINED_T:.0} standard errors of 0: at least a tenth of the coefficient uncertain){}",
+        "the recording does not determine the terms {} (each within {MIN_DETERMINED_T:.0} standard errors of 0: the record does not fix even its sign){}",
         found.join("; "),
         if split {
             ": under a single forcing tone the electrical state moves nearly as a lagged copy of the velocity, so the beam's damping and the coupling trade against each other and only their combined effect is determined; a transient, a sweep or a broadband excitation separates them"

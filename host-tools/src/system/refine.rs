@@ -84,6 +84,12 @@ pub struct Refinement {
     pub weighted_rms: f64,
     /// The streaming model's equations (target, then each term's name and coefficient).
     pub streaming: Vec<(String, Vec<(String, f64)>)>,
+    /// The model refined on the record's first half: each equation's coefficients, in the
+    /// report's order (empty when that refinement failed). Refined again on the whole record,
+    /// a coefficient the record determines moves by about its standard error; one it does not
+    /// moves further ([`super::widen_by_half`]).
+    #[serde(skip)]
+    pub first_half: Vec<Vec<f64>>,
 }
 
 /// A refined system.
@@ -582,6 +588,13 @@ pub fn refine_and_check(
         streaming_score = held_out_percent(sim, data, omega, dt, periods)?;
     }
     let first = refine(sim, data, omega, dt, (0, n / 2));
+    let first_half: Vec<Vec<f64>> = first.as_ref().map_or_else(Vec::new, |f| {
+        f.sim
+            .equations
+            .iter()
+            .map(|eq| eq.iter().map(|(_, c)| *c).collect())
+            .collect()
+    });
     let refined_score = first
         .as_ref()
         .and_then(|f| held_out_percent(&f.sim, data, omega, dt, periods))
@@ -628,6 +641,7 @@ pub fn refine_and_check(
         iterations: whole.as_ref().map_or(0, |w| w.iterations),
         weighted_rms: whole.as_ref().map_or(f64::NAN, |w| w.weighted_rms),
         streaming,
+        first_half,
     };
     Some((whole, info))
 }

@@ -43,6 +43,7 @@ mod system_load;
 mod system_omega;
 mod system_power;
 mod system_terms;
+mod system_trust;
 mod system_wrong;
 mod telemetry_fuzz;
 mod time_axis;
