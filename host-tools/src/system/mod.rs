@@ -730,7 +730,8 @@ pub fn identify_system(
     let quality = quality::assess(&report, data);
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
-        let sentence = quality::refusal(data, &quality);
+        // A stabilised model that still fails: what to try (stable.rs).
+        let sentence = stable::advice(&report.model, quality::refusal(data, &quality));
         report.warnings.extend(quality.failures.iter().cloned());
         report.quality = Some(quality);
         return Ok(Outcome::Withheld(sentence, Box::new(report)));

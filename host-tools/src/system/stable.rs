@@ -255,6 +255,21 @@ pub fn stabilise(report: &mut SystemReport, data: &SystemData) -> bool {
     true
 }
 
+/// The gate's refusal of a model (`model`: the report's `"stabilised"`, `"refined"` …),
+/// with what to try when it was stabilised: the diverging model was
+/// stabilised and still does not follow the record, so the library holds terms the record
+/// (a single tone in steady state tells little beyond the response at the tone) does not
+/// determine. Other refusals are returned as they are.
+pub fn advice(model: &str, sentence: String) -> String {
+    if model != "stabilised" {
+        return sentence;
+    }
+    let sentence = sentence.trim_end_matches('.');
+    format!(
+        "{sentence}; the identified model's free run diverged and was stabilised (its damping increased), which did not make it follow the record: a steady response to a single tone does not determine a large library's terms, so try a smaller one (--poly-order 2, and --harmonics 0 when the measured excitation u is the forcing)."
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -343,6 +358,16 @@ mod tests {
             let miss = nrmse(&v[v.len() / 2..], &data.electrical[0].values[v.len() / 2..]);
             assert!(miss < 0.05, "w {w}: V NRMSE {miss}");
         }
+    }
+
+    #[test]
+    fn only_a_stabilised_model_gets_the_advice() {
+        assert_eq!(advice("streaming", "withheld.".into()), "withheld.");
+        let told = advice("stabilised", "withheld.".into());
+        assert!(
+            told.starts_with("withheld; ") && told.contains("--poly-order 2"),
+            "{told}"
+        );
     }
 
     #[test]
