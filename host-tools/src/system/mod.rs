@@ -30,6 +30,7 @@ pub mod quality;
 pub mod refine;
 pub mod report;
 pub mod simulate;
+pub mod stable;
 
 use std::path::{Path, PathBuf};
 
@@ -722,11 +723,15 @@ pub fn identify_system(
     }
     if !no_refine {
         refine_report(&mut report, data);
+        // A model whose free run diverges through an unstable linearisation: stabilised
+        // (stable.rs, issue 26).
+        stable::stabilise(&mut report, data);
     }
     let quality = quality::assess(&report, data);
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
-        let sentence = quality::refusal(data, &quality);
+        // A stabilised model that still fails: what to try (stable.rs).
+        let sentence = stable::advice(&report.model, quality::refusal(data, &quality));
         report.warnings.extend(quality.failures.iter().cloned());
         report.quality = Some(quality);
         return Ok(Outcome::Withheld(sentence, Box::new(report)));
