@@ -321,7 +321,14 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
                 .unwrap_or(support.len());
             support.insert(at, stiffness);
         }
-        if let Some(start) = supports::least_squares_start(&support, base_model, &train, candidates)
+        // A support already tried (a sweep's neighbour of the streaming one) is that trial.
+        if let Some(seen) = trials.iter().position(|t| t.support == support) {
+            if !roots.contains(&seen) {
+                roots.push(seen);
+            }
+            damping_root = Some(seen);
+        } else if let Some(start) =
+            supports::least_squares_start(&support, base_model, &train, candidates)
         {
             let refined = refine(&start, &train, &on_half);
             let windows = refined
