@@ -661,6 +661,13 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
     q
 }
 
+/// A streaming model of v integrated that predicts the held-out half within this NRMSE (%)
+/// is confirmed by the prediction itself: `lssi gen piezo --input --observe v` (clean)
+/// predicts it at 0.09 % with the true model (χ 2.9 % off), which this check had withheld;
+/// the wrong models it was made for predicted at 1.06–1.99 % (seeds 9974, 9910, 9978). Set on
+/// those four records, none held out.
+pub const CONFIRMED_BY_PREDICTION: f64 = 0.5;
+
 /// See [`assess`]: a model of a recording whose x is v integrated, when refinement on
 /// simulation error did not confirm it (refined on the first half, it predicted the second
 /// half worse than the streaming model). The integral's offset is not measured (the
@@ -673,7 +680,7 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
 pub fn integrated_unconfirmed(report: &SystemReport, data: &SystemData) -> Option<String> {
     data.x_from_v.as_ref()?;
     let r = report.refinement.as_ref()?;
-    (!r.taken).then(|| {
+    (!r.taken && !(r.held_out_streaming_percent < CONFIRMED_BY_PREDICTION)).then(|| {
         format!(
             "x is v integrated (its offset is not measured), and refined on simulation error the model predicted the record's second half no better than the streaming fit (NRMSE {:.2} % against {:.2} %): the streaming model's terms rest on the integral's unmeasured offset, and nothing on the record confirms them (record x beside v)",
             r.held_out_refined_percent, r.held_out_streaming_percent
