@@ -12,6 +12,7 @@ use std::process::{Command, Output};
 
 const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
 
+use crate::common::generate;
 use crate::quality::Gauss;
 
 /// A recording of `n` samples at `rate` Hz, x(t) given (shortest round-trip decimals).
@@ -23,22 +24,6 @@ fn write(dir: &Path, name: &str, n: usize, rate: f64, mut x: impl FnMut(f64) -> 
         text.push_str(&format!("{t:?},{:?}\n", x(t)));
     }
     std::fs::write(&path, text).unwrap();
-    path
-}
-
-fn generate(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
-    let path = dir.join(name);
-    let out = Command::new(LSSI)
-        .arg("gen")
-        .args(args)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "gen {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     path
 }
 

@@ -5,7 +5,6 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use lssi_host::identify::blemish::{Kind, Scan};
@@ -14,17 +13,7 @@ use lssi_host::recording::{ColumnNames, Recording};
 
 const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
 
-fn generate(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
-    let path = dir.join(name);
-    let out = Command::new(LSSI)
-        .args(["gen", "eveh"])
-        .args(args)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "gen {args:?}");
-    path
-}
+use crate::common::gen_eveh;
 
 /// The truth's terms (name → coefficient) from `lssi gen`'s JSON beside `path`, sin/cos
 /// named by their function alone.
@@ -70,7 +59,7 @@ fn gate_prints_a_hard_driven_single_well() {
             "--seed",
             seed,
         ];
-        let path = generate(dir.path(), &format!("hard{seed}.csv"), &args);
+        let path = gen_eveh(dir.path(), &format!("hard{seed}.csv"), &args);
         let truth: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap())
                 .unwrap();
@@ -123,7 +112,7 @@ fn with_u_cut(recording: &Recording, cut: usize, edit: impl Fn(usize, &mut [f64;
 #[test]
 fn blemish_a_step_in_u_is_no_spike_and_every_sentence_names_its_column() {
     let dir = tempfile::tempdir().unwrap();
-    let path = generate(
+    let path = gen_eveh(
         dir.path(),
         "u.csv",
         &["--input", "--delta", "0.01", "--t-end", "5", "--seed", "7"],
@@ -246,7 +235,7 @@ fn sweep_ranges_are_read_to_the_record_ends() {
             "--seed",
             seed,
         ];
-        let path = generate(dir.path(), &format!("sweep{seed}.csv"), &args);
+        let path = gen_eveh(dir.path(), &format!("sweep{seed}.csv"), &args);
         let recording = Recording::read(&path, &ColumnNames::default()).unwrap();
         let found = sweep(&recording).unwrap_or_else(|| panic!("{args:?}: no sweep"));
         let tolerance = 0.05 * (to - from).abs();
@@ -266,7 +255,7 @@ fn a_model_driven_by_u_names_no_omega() {
         ("u.csv", &["--input", "--t-end", "6"][..], false),
         ("cos.csv", &["--t-end", "6"][..], true),
     ] {
-        let path = generate(dir.path(), name, args);
+        let path = gen_eveh(dir.path(), name, args);
         let out = Command::new(LSSI)
             .args(["identify", "--no-refine"])
             .arg(&path)

@@ -5,7 +5,6 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use lssi_host::identify::sweep::sweep;
@@ -13,17 +12,7 @@ use lssi_host::recording::{ColumnNames, Recording};
 
 const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
 
-fn generate(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
-    let path = dir.join(name);
-    let out = Command::new(LSSI)
-        .args(["gen", "eveh"])
-        .args(args)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "gen {args:?}");
-    path
-}
+use crate::common::gen_eveh;
 
 #[test]
 fn a_sweep_without_u_is_named() {
@@ -68,7 +57,7 @@ fn a_sweep_without_u_is_named() {
         &["--excitation", "sweep", "--seed", "22"],
     ];
     for (i, args) in cases.iter().enumerate() {
-        let path = generate(dir.path(), &format!("sweep{i}.csv"), args);
+        let path = gen_eveh(dir.path(), &format!("sweep{i}.csv"), args);
         let out = Command::new(LSSI)
             .arg("identify")
             .arg(&path)
@@ -86,7 +75,7 @@ fn a_sweep_without_u_is_named() {
         assert_eq!(json["withheld"], true);
         assert!(json.get("terms").is_none());
         // With its u column the same sweep is not called one.
-        let with_u = generate(
+        let with_u = gen_eveh(
             dir.path(),
             &format!("sweep{i}u.csv"),
             &[*args, &["--input"][..]].concat(),
@@ -153,7 +142,7 @@ fn steady_chaotic_and_ringdown_records_are_not_sweeps() {
         ],
     ];
     for (i, args) in cases.iter().enumerate() {
-        let path = generate(dir.path(), &format!("steady{i}.csv"), args);
+        let path = gen_eveh(dir.path(), &format!("steady{i}.csv"), args);
         let recording = Recording::read(&path, &ColumnNames::default()).unwrap();
         assert_eq!(sweep(&recording), None, "{args:?}");
     }
@@ -203,7 +192,7 @@ fn a_short_sweep_without_u_is_named() {
     ];
     for (i, (args, from, to)) in sweeps.iter().enumerate() {
         let args = [*args, &["--excitation", "sweep", "--t-end", "5"][..]].concat();
-        let path = generate(dir.path(), &format!("short{i}.csv"), &args);
+        let path = gen_eveh(dir.path(), &format!("short{i}.csv"), &args);
         let out = Command::new(LSSI)
             .arg("identify")
             .arg(&path)
@@ -269,7 +258,7 @@ fn a_short_sweep_without_u_is_named() {
     ];
     for (i, args) in steady.iter().enumerate() {
         let args = [*args, &["--t-end", "5"][..]].concat();
-        let path = generate(dir.path(), &format!("steady{i}.csv"), &args);
+        let path = gen_eveh(dir.path(), &format!("steady{i}.csv"), &args);
         // Through the gate, as a user runs it (a ringdown's frequency drifts steadily too;
         // the gate asks for a sweep only of a model that is forced or fails, or of a record
         // that grows or outlasts the model).
@@ -298,7 +287,7 @@ fn a_transient_beside_a_steady_forcing_is_not_a_sweep() {
         ("41", "0.36", "14500", "3.45", "0"),
         ("42", "0.4", "12000", "4", "0.01"),
     ] {
-        let path = generate(
+        let path = gen_eveh(
             dir.path(),
             &format!("t{seed}.csv"),
             &[

@@ -7,16 +7,10 @@
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::collections::BTreeMap;
-use std::process::{Command, Output};
 
 use serde_json::Value;
 
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use crate::common::lssi;
 
 /// Each equation's terms (sin/cos by kind) and coefficients.
 fn equations(v: &Value) -> BTreeMap<String, BTreeMap<String, f64>> {

@@ -5,23 +5,7 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
-
-fn generate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, serde_json::Value) {
-    let path = dir.join(name);
-    let out = Command::new(LSSI)
-        .args(["gen", "eveh"])
-        .args(args)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "gen {args:?}");
-    let truth = std::fs::read_to_string(path.with_extension("json")).unwrap();
-    (path, serde_json::from_str(&truth).unwrap())
-}
+use crate::common::{gen_eveh, identify_json, truth};
 
 /// sin/cos named by their function alone.
 fn kind(name: &str) -> &str {
@@ -31,22 +15,6 @@ fn kind(name: &str) -> &str {
         "sin"
     } else {
         name
-    }
-}
-
-/// `lssi identify --json FILE`: the exit code and the JSON (or stderr's last line).
-fn identify(path: &Path) -> (i32, Result<serde_json::Value, String>) {
-    let out = Command::new(LSSI)
-        .args(["identify", "--json"])
-        .arg(path)
-        .output()
-        .unwrap();
-    let code = out.status.code().unwrap();
-    if code == 0 {
-        (code, Ok(serde_json::from_slice(&out.stdout).unwrap()))
-    } else {
-        let err = String::from_utf8_lossy(&out.stderr).trim().to_owned();
-        (code, Err(err))
     }
 }
 
@@ -103,8 +71,9 @@ fn assert_true_model(model: &serde_json::Value, truth: &serde_json::Value, what:
 fn the_double_well_at_a_field_devices_rate_is_identified() {
     let dir = tempfile::tempdir().unwrap();
     for seed in ["2", "3"] {
-        let (path, truth) = generate(dir.path(), "field.csv", &["--rate", "80", "--seed", seed]);
-        let (code, out) = identify(&path);
+        let path = gen_eveh(dir.path(), "field.csv", &["--rate", "80", "--seed", seed]);
+        let truth = truth(&path);
+        let (code, out) = identify_json(&path, &[]);
         assert_eq!(code, 0, "seed {seed}: {out:?}");
         assert_true_model(&out.unwrap(), &truth, &format!("80 Hz seed {seed}"));
     }
@@ -117,7 +86,7 @@ fn the_double_well_at_a_field_devices_rate_is_identified() {
 #[test]
 fn a_driven_model_without_a_damping_gets_v_back() {
     let dir = tempfile::tempdir().unwrap();
-    let (path, truth) = generate(
+    let path = gen_eveh(
         dir.path(),
         "heavy.csv",
         &[
@@ -151,9 +120,9 @@ fn a_driven_model_without_a_damping_gets_v_back() {
             "20059",
         ],
     );
-    let (code, out) = identify(&path);
+    let (code, out) = identify_json(&path, &[]);
     assert_eq!(code, 0, "{out:?}");
-    assert_true_model(&out.unwrap(), &truth, "heavy single well");
+    assert_true_model(&out.unwrap(), &truth(&path), "heavy single well");
 }
 
 /// A light single well driven hard (4.9 m/s²) at 0.45 of its resonance, 45 samples a period,
@@ -164,7 +133,7 @@ fn a_driven_model_without_a_damping_gets_v_back() {
 #[test]
 fn a_streaming_model_that_cannot_predict_its_record_is_withheld() {
     let dir = tempfile::tempdir().unwrap();
-    let (path, _) = generate(
+    let path = gen_eveh(
         dir.path(),
         "hard.csv",
         &[
@@ -196,7 +165,7 @@ fn a_streaming_model_that_cannot_predict_its_record_is_withheld() {
             "20094",
         ],
     );
-    let (code, out) = identify(&path);
+    let (code, out) = identify_json(&path, &[]);
     assert_eq!(code, 3, "{out:?}");
     let reason = out.unwrap_err();
     assert!(
@@ -214,7 +183,7 @@ fn a_streaming_model_that_cannot_predict_its_record_is_withheld() {
 #[test]
 fn a_kept_streaming_model_with_unresolved_terms_is_withheld() {
     let dir = tempfile::tempdir().unwrap();
-    let (path, _) = generate(
+    let path = gen_eveh(
         dir.path(),
         "input.csv",
         &[
@@ -247,7 +216,7 @@ fn a_kept_streaming_model_with_unresolved_terms_is_withheld() {
             "20119",
         ],
     );
-    let (code, out) = identify(&path);
+    let (code, out) = identify_json(&path, &[]);
     assert_eq!(code, 3, "{out:?}");
     let reason = out.unwrap_err();
     assert!(
