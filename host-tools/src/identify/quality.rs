@@ -170,8 +170,7 @@ pub fn target_variance(recording: &Recording, config: &Config) -> Option<f64> {
 /// Whether the model's free run from the recording's first clean state stays finite and
 /// within [`MAX_EXCURSION`] recorded ranges of x.
 pub fn free_run_stable(recording: &Recording, report: &Report) -> Option<bool> {
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     if stretch.len() < 8 {
         return None;
     }
@@ -286,8 +285,7 @@ fn low_pass_cut(n: usize, period: f64) -> usize {
 /// `None` when it cannot be measured.
 pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHorizon> {
     use crate::identify::refine::{Data, mean_period_samples, spread_window_errors};
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let t = &recording.t[stretch.clone()];
     let x = &recording.x[stretch.clone()];
     let u = recording.u.as_ref().map(|u| &u[stretch.clone()]);
@@ -312,9 +310,7 @@ pub fn short_horizon(recording: &Recording, report: &Report) -> Option<ShortHori
     if x.len() < 2 * length {
         return None;
     }
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let sd = crate::identify::stretch::rms(x);
     if !(sd > 0.0) {
         return None;
     }
@@ -393,13 +389,10 @@ pub fn prediction_misses(
     check: &crate::identify::refine::Check,
 ) -> Option<String> {
     let fit = check.prediction?;
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let x = &recording.x[stretch];
     let period = crate::identify::refine::mean_period_samples(x)?;
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let sd = crate::identify::stretch::rms(x);
     let mut noise = noise_percent(x, period, sd).unwrap_or(0.0);
     if check.held_out[1].is_none() {
         // The streaming model alone (no refined one compared): a strongly nonlinear record's
@@ -449,8 +442,7 @@ pub fn collinearity(recording: &Recording, report: &Report) -> Option<(f64, Vec<
     if terms.len() < 2 {
         return None;
     }
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let stretch = stretch.start..stretch.end.min(stretch.start + (1 << 16));
     let t = &recording.t[stretch.clone()];
     let n = t.len();
@@ -622,18 +614,7 @@ pub fn undamped_decay(recording: &Recording, report: &Report) -> Option<String> 
     if h.driven || h.damped || !h.any {
         return None;
     }
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
-    let x = &recording.x[stretch];
-    let quarter = x.len() / 4;
-    if quarter < 16 {
-        return None;
-    }
-    let rms = |s: &[f64]| {
-        let mean = s.iter().sum::<f64>() / s.len() as f64;
-        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
-    };
-    let (first, last) = (rms(&x[..quarter]), rms(&x[x.len() - quarter..]));
+    let (first, last) = crate::identify::stretch::quarters_rms(recording)?;
     (last * DECAYS < first).then(|| {
         format!(
             "x's oscillation dies out over the record (its RMS over the last quarter is {:.0} % of the first's) but the model has no term in v, no damping, and without forcing cannot lose energy: the damping is not resolved at this noise and length (a longer record, or less noise)",

@@ -26,7 +26,6 @@
 //! out across the record (a ringdown of a hardening or softening oscillator is a chirp too,
 //! but one that decays from its first state).
 
-use crate::identify::blemish::Scan;
 use crate::recording::Recording;
 
 /// Segments the record is cut into at most.
@@ -55,6 +54,11 @@ pub const CHIRP_GAIN: f64 = 1.2;
 pub const CHIRP_PROMINENCE: f64 = 100.0;
 /// Resolution widths (2π over the record's duration) the dechirped line must move at least.
 pub const CHIRP_MIN_RESOLUTIONS: f64 = 2.0;
+/// The share of x's variance the dechirped line must hold ([`line_share`]): a swept
+/// response's held 0.47–0.96 (5–20 s sweeps, single and double well), a bistable beam's
+/// under white base acceleration 0.06–0.18 (8 draws), whose strongest dechirped line
+/// stood 1.2–2.2 times above its plain spectrum's and had it named a chirp.
+pub const CHIRP_SHARE: f64 = 0.3;
 /// Samples the record is reduced to (by block means) for the dechirping, at most about.
 const CHIRP_SAMPLES: usize = 8192;
 /// Chirp rates tried either side of 0, at most.
@@ -151,8 +155,7 @@ pub fn sweep(recording: &Recording) -> Option<Sweep> {
     if recording.u.is_some() {
         return None;
     }
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let t = &recording.t[stretch.clone()];
     let x = &recording.x[stretch];
     // Fewer, longer segments when a sweep's low end is too slow for short ones.
@@ -281,6 +284,16 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
     let middle = spectrum.len() / 2;
     let median = *spectrum.select_nth_unstable_by(middle, f64::total_cmp).1;
     if !(power >= CHIRP_PROMINENCE * median) {
+        return None;
+    }
+    // The line must hold a good part of x's variance: a swept forcing's response is mostly
+    // at the swept frequency, where a random (broadband) one's strongest dechirped line,
+    // the best of many spectra, is a sliver of it.
+    let share = line_share(power, &y, &window);
+    if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
+        eprintln!("lssi: sweep: the dechirped line holds {share:.3} of x's variance");
+    }
+    if !(share >= CHIRP_SHARE) {
         return None;
     }
     // The line's envelope: x demodulated along it, averaged over two of its periods.
@@ -447,8 +460,7 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
 /// forced response) misses the forcing; a ringdown's model dies out with the recording.
 pub fn outlasts_model(recording: &Recording, report: &crate::identify::Report) -> Option<bool> {
     use crate::identify::simulate::{SimModel, simulate};
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let t = &recording.t[stretch.clone()];
     let x = &recording.x[stretch.clone()];
     if x.len() < 64 {
@@ -464,10 +476,7 @@ pub fn outlasts_model(recording: &Recording, report: &crate::identify::Report) -
         return None;
     }
     let tail = x.len() - x.len() / SEGMENTS;
-    let rms = |s: &[f64]| {
-        let mean = s.iter().sum::<f64>() / s.len() as f64;
-        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
-    };
+    let rms = crate::identify::stretch::rms;
     Some(rms(&x[tail..]) > OUTLASTS * rms(&run.x[tail..]))
 }
 
@@ -480,8 +489,7 @@ pub fn outlasts_model(recording: &Recording, report: &crate::identify::Report) -
 pub fn model_follows(recording: &Recording, report: &crate::identify::Report) -> Option<bool> {
     use crate::identify::refine::{Data, free_run_after_fitted_start, mean_period_samples};
     use crate::identify::simulate::SimModel;
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
+    let stretch = crate::identify::stretch::longest(recording)?;
     let data = Data {
         t: &recording.t[stretch.clone()],
         x: &recording.x[stretch.clone()],
@@ -521,18 +529,7 @@ pub fn keeps_amplitude(recording: &Recording) -> bool {
 /// x's RMS about its mean over the first and the last quarter of the record's longest clean
 /// stretch (`None` when a quarter is under 16 samples).
 fn quarters_rms(recording: &Recording) -> Option<(f64, f64)> {
-    let scan = Scan::of(recording);
-    let stretch = scan.stretches().into_iter().max_by_key(|r| r.len())?;
-    let x = &recording.x[stretch];
-    let quarter = x.len() / 4;
-    if quarter < 16 {
-        return None;
-    }
-    let rms = |s: &[f64]| {
-        let mean = s.iter().sum::<f64>() / s.len() as f64;
-        (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / s.len() as f64).sqrt()
-    };
-    Some((rms(&x[..quarter]), rms(&x[x.len() - quarter..])))
+    crate::identify::stretch::quarters_rms(recording)
 }
 
 /// The share of its first quarter's oscillation x must keep over its last for
@@ -541,3 +538,13 @@ pub const KEEPS: f64 = 0.9;
 
 /// How much more x must oscillate over its last quarter than its first for [`grows`].
 pub const GROWS: f64 = 1.25;
+
+/// The share of the variance of `y` (weighted by `window`) that a line of `power` in its
+/// windowed transform (any zero padding) stands for: 1 for a pure tone at a bin's centre.
+/// A tone A cos(ωt) puts (A/2 Σw)² in its bin and A²/2 Σw² of variance in y·w.
+fn line_share(power: f64, y: &[f64], window: &[f64]) -> f64 {
+    let sum_w: f64 = window.iter().sum();
+    let sum_w2: f64 = window.iter().map(|w| w * w).sum();
+    let energy: f64 = y.iter().zip(window).map(|(v, w)| (v * w).powi(2)).sum();
+    2.0 * sum_w2 * power / (sum_w * sum_w * energy)
+}

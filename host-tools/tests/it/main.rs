@@ -48,5 +48,6 @@ mod system_wrong;
 mod telemetry_fuzz;
 mod time_axis;
 mod track;
+mod trust_more;
 mod twodof;
 mod unseen_sets;
