@@ -107,3 +107,52 @@ fn a_double_well_seen_in_one_well_is_printed_about_its_centre() {
         code => panic!("exit {code}: {stderr}"),
     }
 }
+
+/// Seed 9976's record: a bistable piezo harvester, x, v and the base acceleration u
+/// recorded at 5 % noise. Refined, x'' was printed with a spurious constant (−0.148 ± 0.033)
+/// and the coupling V 14 % off (0.0179 ± 0.0037, ± 21 % of it): the coupling is now held to
+/// be determined (its ± at most 1/7 of it), so the model is withheld naming it, or right.
+#[test]
+fn a_loosely_determined_coupling_is_not_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("c.csv");
+    let p = path.to_str().unwrap();
+    let g = lssi(&[
+        "gen",
+        "piezo",
+        "--wells",
+        "bistable",
+        "--amplitude",
+        "5.08",
+        "--omega",
+        "79.92",
+        "--rate",
+        "8920",
+        "--t-end",
+        "10.1",
+        "--delta",
+        "0.05",
+        "--observe",
+        "xv",
+        "--input",
+        "--seed",
+        "9976",
+        p,
+    ]);
+    assert!(g.status.success(), "{}", String::from_utf8_lossy(&g.stderr));
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("c.json")).unwrap()).unwrap();
+    let o = lssi(&["identify", "--json", p]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    match o.status.code().unwrap() {
+        0 => {
+            let printed: Value = serde_json::from_slice(&o.stdout).unwrap();
+            assert_eq!(supports(&printed), supports(&truth), "printed {printed}");
+        }
+        3 => assert!(
+            stderr.contains("no deterministic dynamics found in") && stderr.contains("coupling"),
+            "{stderr}"
+        ),
+        code => panic!("exit {code}: {stderr}"),
+    }
+}
