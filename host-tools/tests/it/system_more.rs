@@ -113,7 +113,6 @@ fn a_double_well_seen_in_one_well_is_printed_about_its_centre() {
 /// and the coupling V 14 % off (0.0179 ± 0.0037, ± 21 % of it): the coupling is now held to
 /// be determined (its ± at most 1/7 of it), so the model is withheld naming it, or right.
 #[test]
-#[ignore = "43 s on a shared machine (90,000 samples at 5 % noise; a 4 s record does not reproduce it): cargo test -p lssi-host --test it -- --ignored loosely"]
 fn a_loosely_determined_coupling_is_not_printed() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("c.csv");
