@@ -24,7 +24,6 @@
 //!   (`lssi simulate` for systems).
 //! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
 
-pub mod coverage;
 pub mod power;
 pub mod proportional;
 pub mod quality;
@@ -878,8 +877,6 @@ pub fn widen_unbacked(report: &mut SystemReport, streaming: &[Vec<f64>]) {
 /// seeds 1–6: χ 0.0143–0.0182, each ± 0.0010), and a split the record does not determine
 /// moves by far more than its ±.
 pub fn widen_by_half(report: &mut SystemReport, first_half: &[Vec<f64>]) {
-    // Every term's ± scaled by how far the record's own split moved them all (coverage.rs).
-    coverage::scale_by_split(report, first_half);
     let mut widened = false;
     for (e, half) in report.equations.iter_mut().zip(first_half) {
         for (t, &c1) in e.terms.iter_mut().zip(half) {

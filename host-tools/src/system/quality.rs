@@ -654,11 +654,6 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
         q.failures.push(why);
     }
     if q.failures.is_empty()
-        && let Some(why) = super::coverage::coupling_imprecise(&sim, report)
-    {
-        q.failures.push(why);
-    }
-    if q.failures.is_empty()
         && let Some(why) = integrated_unconfirmed(report, data)
     {
         q.failures.push(why);
