@@ -31,6 +31,7 @@ pub mod refine;
 pub mod report;
 pub mod simulate;
 pub mod stable;
+pub mod symmetric;
 
 use std::path::{Path, PathBuf};
 

@@ -150,7 +150,13 @@ pub fn identify(
             Box::new(report),
         )));
     }
-    let quality = super::quality::assess(&report, data);
+    let mut quality = super::quality::assess(&report, data);
+    // x'' about one well of a double well: about its centre of symmetry where that predicts
+    // as well (super::symmetric).
+    if let Some((symmetric, q)) = super::symmetric::recentre(&report, &quality, data) {
+        report = symmetric;
+        quality = q;
+    }
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
         let sentence = super::quality::refusal(data, &quality);

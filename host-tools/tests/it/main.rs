@@ -41,6 +41,7 @@ mod system_coil;
 mod system_gate;
 mod system_load;
 mod system_omega;
+mod system_more;
 mod system_power;
 mod system_terms;
 mod system_trust;
