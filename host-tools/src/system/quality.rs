@@ -30,7 +30,8 @@
 //! 6. **An electrical channel proportional to the velocity** has no dynamics of its own
 //!    ([`electrical_follows_velocity`]); else **a harvester's coupling acts both ways**
 //!    ([`coupling_both_ways`]), and **its beam's damping is there beside its coupling**
-//!    ([`damping_beside_coupling`]).
+//!    ([`damping_beside_coupling`]), and **its coupling passive** ([`coupling_not_passive`]:
+//!    x'' holds χ·E and E' holds κ·v with χ·κ < 0).
 //! 7. **Each electrical equation's terms are determined** ([`undetermined_electrical_terms`]):
 //!    in an electrical equation holding the excitation's harmonics, refitted on the record
 //!    (or as refined), none is within [`MIN_ELECTRICAL_T`] standard errors of 0 (a
@@ -642,6 +643,8 @@ pub fn assess(report: &SystemReport, data: &SystemData) -> SystemQuality {
         q.failures.push(why);
     } else if let Some(why) = damping_beside_coupling(&sim, report, data) {
         q.failures.push(why);
+    } else if let Some(why) = coupling_not_passive(&sim, report) {
+        q.failures.push(why);
     }
     if let Some(why) = undetermined_electrical_terms(&sim, report, data) {
         q.failures.push(why);
@@ -1070,6 +1073,52 @@ pub fn damping_beside_coupling(
                 "{target} has the coupling {coupling} but no damping term in {v}, and this recording cannot part the beam's damping from the coupling ({v} and {coupling} are collinear on it, as for a coil of negligible inductance, whose voltage is proportional to the velocity): only their sum is determined"
             ),
         });
+    }
+    None
+}
+
+/// See [`assess`]: a coupling that would feed the beam energy the circuit never gave. A
+/// harvester's transducer (piezo or coil) couples its beam and circuit as a gyrator: x'' holds
+/// χ·E and E' holds κ·v with χ·κ < 0 (piezo x'' = … + (θ/m) V, V' = −(θ/C) v − V/(RC); coil
+/// x'' = … − (Bl/m) i, i' = (Bl/L) v − (R/L) i), whatever the sensors' polarities (reversing
+/// x or E flips both signs). A pair of one sign is not a passive harvester's: the selection
+/// traded the coupling for the beam's damping, which a lagged copy of v can stand in for under
+/// one forcing tone (`scripts/hostile-system.sh` seed 10126: an inductive coil at 0 % noise
+/// printed x'' = … − 2.50 v + 243.5 i with i' = 0.5 v − 200 i, truth −1.26 v − 250 i, exit 0).
+/// The sentence, or `None`.
+pub fn coupling_not_passive(sim: &SystemSim, report: &SystemReport) -> Option<String> {
+    let d = sim.displacements;
+    let coef = |eq: &[(SimTerm, f64)], term: SimTerm| {
+        eq.iter()
+            .find(|(t, c)| *t == term && *c != 0.0)
+            .map(|(_, c)| *c)
+    };
+    for m in 0..d {
+        let velocity = if m == 0 { 1 } else { 5 };
+        for k in 0..sim.electrical.len().min(2) {
+            if sim.algebraic[k] {
+                continue;
+            }
+            let (Some(eq_m), Some(eq_e)) = (sim.equations.get(m), sim.equations.get(d + k)) else {
+                continue;
+            };
+            let (Some(chi), Some(kappa)) = (
+                coef(eq_m, state_term(2 + k)),
+                coef(eq_e, state_term(velocity)),
+            ) else {
+                continue;
+            };
+            if chi * kappa > 0.0 {
+                let target = |j: usize| report.equations.get(j).map_or("?", |e| e.target.as_str());
+                let e = state_term(2 + k).name_in(&sim.electrical, d);
+                let v = state_term(velocity).name_in(&sim.electrical, d);
+                return Some(format!(
+                    "the coupling is not a passive harvester's: {} has {chi:+.4e} {e} and {} has {kappa:+.4e} {v}, of one sign, so the transducer would feed the beam energy the circuit never gave (a piezo's or a coil's pair has opposite signs, whatever the sensors' polarities): the selection traded the coupling for the beam's damping, which {e}, nearly a lagged copy of {v} under one forcing tone, can stand in for",
+                    target(m),
+                    target(d + k),
+                ));
+            }
+        }
     }
     None
 }

@@ -316,7 +316,7 @@ fn a_printed_term_its_standard_error_does_not_resolve_is_withheld() {
         assert_true_model(&path);
     } else {
         assert!(terms.is_empty(), "{terms:?}");
-        assert_withheld(&path, "is not resolved by the record: its ± covers 0");
+        assert_withheld(&path, "is not resolved by the record: twice its ± covers 0");
         assert!(stderr.contains("x*v^2"), "{stderr}");
     }
 }

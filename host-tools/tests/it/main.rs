@@ -29,6 +29,7 @@ mod replay_cli;
 mod replay_link;
 mod replay_resume;
 mod replay_system;
+mod resolved;
 mod spikes;
 mod standard_errors;
 mod stdin_input;
