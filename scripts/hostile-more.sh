@@ -12,6 +12,8 @@
 #               (and the forcing's Omega within 1 %)
 #   withheld    exit 3 (the reason's sentence shown)
 #   refused     exit 2 (the reason's sentence shown)
+#   true within ±  the truth's terms, each coefficient within the bars above or within two of
+#               its printed standard errors (the model's ± covers the truth)
 #   WRONG       exit 0 with any other model
 # Prints a markdown table (one row a seed) and the counts. With PY=path/to/python (a venv
 # with the lssi package), each file is also fitted through Python (`lssi.identify(path,
@@ -124,6 +126,16 @@ def classify(truth, model):
     if ok:
         worst = max(abs(got[k] / w - 1) for k, w in want.items())
         return 'true model', f'worst coefficient {100 * worst:.2g} %'
+    # The truth's terms, each coefficient outside the bar above but within two of its printed
+    # standard errors: the model says how uncertain it is, and the truth is inside.
+    se = {key(t['term']): t.get('se') for t in model['terms']}
+    omega_ok = 'cos' not in want or abs(model['omega'] / truth['omega'] - 1) <= 0.01
+    if set(got) == set(want) and omega_ok and all(
+            abs(got[k] / w - 1) <= (0.25 if k == 'v' else 0.10)
+            or (se[k] is not None and abs(got[k] - w) <= 2 * se[k]) for k, w in want.items()):
+        far = max(want, key=lambda k: abs(got[k] / want[k] - 1) / (0.25 if k == 'v' else 0.10))
+        return 'true within ±', (f'{far} {got[far]:.4g} ± {se[far]:.2g} (truth {want[far]:.4g}, '
+                                 f'{100 * abs(got[far] / want[far] - 1):.2g} % off)')
     eq = ' '.join(f'{v:+.4g} {k}' for k, v in got.items())
     if 'cos' in got:
         eq += f' (Ω {model["omega"]:.4g}, truth {truth["omega"]:.4g})'
@@ -214,6 +226,6 @@ for seed, (p, outcome, detail, pyres) in zip(seeds, results):
           f"{'u' if p['input'] else ''} | {100 * p['delta']:g} % | {p['bits']} | {p['offset']:g} | {p['form']} | "
           f"{outcome} | {detail} |" + (f' {pyres} |' if py else ''))
 print()
-print(' · '.join(f'{k}: {counts.get(k, 0)}' for k in ['true model', 'withheld', 'refused', 'WRONG'])
+print(' · '.join(f'{k}: {counts.get(k, 0)}' for k in ['true model', 'true within ±', 'withheld', 'refused', 'WRONG'])
       + f' (of {len(seeds)})' + (' · python: ' + ', '.join(f'{k} {v}' for k, v in pyc.items()) if py else ''))
 PY

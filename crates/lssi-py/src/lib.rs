@@ -220,7 +220,9 @@ impl Fit {
 
     /// The reported model's standard errors, term by term, when it is the refined one.
     fn standard_errors(&self) -> Option<Vec<(String, f64)>> {
-        (self.reported() == "refined").then(|| {
+        // The refined model's, or a kept streaming model's (its support refined, each
+        // widened to the distance between the two estimates); none with refine=False.
+        self.report.terms.iter().any(|t| t.se.is_some()).then(|| {
             self.report
                 .terms
                 .iter()

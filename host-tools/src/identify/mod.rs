@@ -97,7 +97,9 @@ pub struct TermReport {
     pub term: String,
     /// Coefficient in physical units.
     pub coef: f64,
-    /// Its standard error (a refined model's terms only; absent from the JSON otherwise).
+    /// Its standard error (a refined model's, or a kept streaming model's: its support
+    /// refined, widened to the two estimates' distance; absent from the JSON with
+    /// `--no-refine`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub se: Option<f64>,
 }

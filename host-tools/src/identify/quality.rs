@@ -649,6 +649,11 @@ pub const MIN_TERM_SE: f64 = 2.0;
 /// and refinement could not drop it without predicting the held-out part worse: the record,
 /// often a barely predictable one, cannot tell whether it belongs). The sentence, or `None`.
 pub fn unresolved_term(report: &Report) -> Option<String> {
+    // A kept streaming model's ± (its support refined, widened to the two estimates' distance)
+    // is judged by [`unresolved_streaming_term`], which says so.
+    if report.reported != crate::identify::refine::Chosen::Refined {
+        return None;
+    }
     let weak: Vec<String> = report
         .terms
         .iter()

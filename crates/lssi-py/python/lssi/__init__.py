@@ -546,9 +546,10 @@ class Model:
         return self._dense(self._single("streaming_coefficients").streaming_terms())
 
     def standard_errors(self):
-        """The standard error of each active term's coefficient when the reported model is the
-        refined one (NaN where it could not be computed); None for the streaming model,
-        which has none. For a system, a dict per equation of the active terms' standard
+        """The standard error of each active term's coefficient (NaN where it could not be
+        computed): the refined model's, or, when refinement kept the streaming model, the
+        larger of its support's refined standard error and the distance between the two
+        estimates; None with refine=False (the device's model has none). For a system, a dict per equation of the active terms' standard
         errors (the report's least-squares ones; NaN where there is none)."""
         if self._is_system():
             return {

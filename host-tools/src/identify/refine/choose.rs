@@ -995,6 +995,25 @@ pub fn refine_recording(
     refine_and_check_among(&SimModel::from_report(report), &candidates, &data)
 }
 
+/// A kept streaming coefficient's ± : its support refined on simulation error over the first
+/// half gives each term a standard error, and the streaming estimate (equation error,
+/// derivatives from samples) and that refinement are two estimates of one coefficient; the ±
+/// is the larger of that standard error and the distance between the two, so that a bias the
+/// estimators do not share shows (issue 25: a kept streaming model printed its damping 25 %
+/// off with no ± at all, `scripts/hostile-more.sh` seed 20108). `None` for a term the
+/// refinement did not carry.
+fn streaming_standard_error(check: &Check, term: Term, coef: f64) -> Option<f64> {
+    let refined = check.supports.first()?.refined.as_ref()?;
+    let (_, c, se) = refined.iter().find(|(t, _, _)| *t == term)?;
+    let spread = (coef - c).abs();
+    let se = if se.is_finite() && *se >= spread {
+        *se
+    } else {
+        spread
+    };
+    (se.is_finite() && se > 0.0).then_some(se)
+}
+
 impl crate::identify::Report {
     /// Takes the refined model of `check` as the reported one (`terms`, with standard errors,
     /// and the resonance and wells computed from it) when the check chose it; the streaming
@@ -1002,6 +1021,7 @@ impl crate::identify::Report {
     /// streaming model changes nothing.
     pub fn take_refined(&mut self, check: &Check) {
         if check.chosen != Chosen::Refined {
+            self.streaming_uncertainty(check);
             return;
         }
         let omega = check.model.omega;
@@ -1039,5 +1059,25 @@ impl crate::identify::Report {
         self.wells = force.wells();
         self.well_resonance_hz = force.well_resonance_hz();
         self.device_rate_hz = self.device_rate().map(|r| r.hz);
+    }
+
+    /// The kept streaming model's terms with a ± each ([`streaming_standard_error`]), where
+    /// its support was refined; the model is unchanged.
+    fn streaming_uncertainty(&mut self, check: &Check) {
+        if check.chosen != Chosen::Streaming {
+            return;
+        }
+        let omega = check.model.omega;
+        for t in &mut self.terms {
+            if t.se.is_some() {
+                continue;
+            }
+            t.se = check
+                .model
+                .terms
+                .iter()
+                .find(|(term, c)| *c != 0.0 && term.name(omega).to_string() == t.term)
+                .and_then(|(term, _)| streaming_standard_error(check, *term, t.coef));
+        }
     }
 }
