@@ -201,10 +201,23 @@ pub fn configure(
         .filter(|d| *d > 0.0)
         .collect();
     if steps.len() < 64 {
+        // Rows enough, but t does not go forward: the rows are out of time order.
+        let back = finite_t.windows(2).filter(|w| w[1] <= w[0]).count();
+        if finite_t.len() > 64 && back >= finite_t.len() / 2 {
+            return Err(IdentifyError(format!(
+                "{file}: t does not increase: it falls or stays at {back} of its {} steps (t from {} to {}), so the rows are not in time order; sort them by t.",
+                finite_t.len() - 1,
+                finite_t[0],
+                finite_t[finite_t.len() - 1]
+            )));
+        }
         return Err(IdentifyError(format!(
             "{file}: only {} usable samples; the identifier needs a few hundred at least.",
             steps.len() + 1
         )));
+    }
+    if let Some(why) = magnitude(recording, options) {
+        return Err(IdentifyError(format!("{file}: {why}")));
     }
     steps.sort_by(f64::total_cmp);
     let dt = steps[steps.len() / 2];
@@ -309,6 +322,62 @@ pub fn configure(
         .validate::<WINDOW_CAPACITY, TERM_CAPACITY, 3>()
         .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     Ok((config, estimated))
+}
+
+/// A channel the identifier cannot compute with, named with the unit change that mends it:
+/// most of its values (less the [`Reference`] taken off x and v) beyond the largest magnitude a sample may have (`Config::max_abs`,
+/// each such sample rejected), or x (or v) so small or so large that the library's highest
+/// power of it, |x|^P, is under the smallest normal number of the precision (f32: 1.2e-38,
+/// at |x| under 2.3e-13 for P = 3) or over its largest (f32: 3.4e38, at |x| over 4.4e7 for
+/// P = 5), where every regression row is lost. `None` for a usable range.
+fn magnitude(recording: &Recording, options: &Options) -> Option<String> {
+    let limit = Config::default().max_abs;
+    let channels = [
+        ("x", Some(&recording.x), true),
+        ("v", recording.v.as_ref(), true),
+        ("u", recording.u.as_ref(), false),
+    ];
+    for (name, values, base) in channels {
+        let Some(values) = values else { continue };
+        // As the identifier is fed: x and v less the reference `identify` takes off them.
+        let reference = if base {
+            Reference::channel(values)
+        } else {
+            0.0
+        };
+        let fed: Vec<f64> = values
+            .iter()
+            .filter(|v| v.is_finite())
+            .map(|v| (v - reference).abs())
+            .collect();
+        let finite = fed.len();
+        let beyond = fed.iter().filter(|v| **v > limit).count();
+        let max = fed.iter().fold(0.0_f64, |m, v| m.max(*v));
+        if finite > 0 && 2 * beyond > finite {
+            return Some(format!(
+                "{name} reaches {max:.3e}: {beyond} of its {finite} values are beyond ±{limit:.0e}, the largest magnitude the identifier takes (each such sample is rejected); give {name} in a larger unit (m rather than µm, say)."
+            ));
+        }
+        let (smallest, largest, precision) = if options.f32 {
+            (f64::from(f32::MIN_POSITIVE), f64::from(f32::MAX), "f32")
+        } else {
+            (f64::MIN_POSITIVE, f64::MAX, "f64")
+        };
+        let order = i32::from(options.poly_order.max(1));
+        let power = order as f64 * max.log10();
+        let or_f64 = if options.f32 { " or use --f64" } else { "" };
+        if base && max > 0.0 && power < smallest.log10() {
+            return Some(format!(
+                "{name} is at most {max:.3e} in magnitude, so the library's {name}^{order} is under {precision}'s smallest normal number ({smallest:.2e}) and the identifier cannot compute with it; give {name} in a smaller unit (µm rather than m, say){or_f64}."
+            ));
+        }
+        if base && power > largest.log10() {
+            return Some(format!(
+                "{name} reaches {max:.3e}, so the library's {name}^{order} is over {precision}'s largest number ({largest:.2e}) and the identifier cannot compute with it; give {name} in a larger unit (m rather than µm, say){or_f64}."
+            ));
+        }
+    }
+    None
 }
 
 /// A time column that is not a regular grid, named: rounded to too few decimals (steps of 0),
