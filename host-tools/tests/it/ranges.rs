@@ -150,3 +150,17 @@ fn a_semicolon_file_is_told_about_decimal_commas() {
         "{err}"
     );
 }
+
+/// `--memory 0.05` on a 2 kHz record: every sample accepted, no model, and the sentence
+/// named neither the memory nor what to do.
+#[test]
+fn a_memory_too_short_for_a_model_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = edited(dir.path(), "m.csv", <[(f64, f64)]>::to_vec);
+    let (code, err) = refused(&["identify", "--no-refine", "--memory", "0.05"], &path);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--memory 0.05 s keeps about 100 samples") && err.contains("longer memory"),
+        "{err}"
+    );
+}
