@@ -354,7 +354,8 @@ fn header_hint(column: &str, found: &[String]) -> Option<String> {
         if let Some((_, name)) = delimiters.iter().find(|(d, _)| only.contains(*d)) {
             return Some(format!(
                 "the header seems to be separated by {name}, but lssi reads comma-separated files: \
-                 replace the delimiter with commas (e.g. tr ';\\t' ',,' < in > out.csv)"
+                 replace the delimiter with commas (e.g. tr ';\\t' ',,' < in > out.csv), after \
+                 turning any decimal commas (0,5) into points (e.g. sed 's/,/./g')"
             ));
         }
     }

@@ -90,15 +90,23 @@ fn python_words(message: &str) -> String {
     ];
     // A header's hint names the command's column options, which Python has not got: the
     // columns are renamed instead.
+    const RENAME: &str = "rename the file's columns to t, x or v, u, and V or i (or read it with pandas, rename them and pass the DataFrame).";
+    const CASE: &str = "differs only in case (names are case-sensitive): give ";
     let message = match message
         .find("; if '")
         .or_else(|| message.find("; name the motion's"))
     {
-        Some(at) if message.contains("--x-col or --v-col") => format!(
-            "{}; rename the file's columns to t, x or v, u, and V or i (or read it with pandas, rename them and pass the DataFrame).",
-            &message[..at]
-        ),
-        _ => message.to_string(),
+        Some(at) if message.contains("--x-col or --v-col") => {
+            format!("{}; {RENAME}", &message[..at])
+        }
+        // `column 'T' differs only in case …: give --t-col T --x-col X.`
+        _ => match message.find(CASE) {
+            Some(at) => format!(
+                "{}differs only in case (names are case-sensitive): {RENAME}",
+                &message[..at]
+            ),
+            None => message.to_string(),
+        },
     };
     let mut out = message;
     for (flag, argument) in FLAGS {

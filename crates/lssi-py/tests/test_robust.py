@@ -3,6 +3,7 @@ they were not configured for, a simulation without the u its model needs, option
 wrong type, sentences naming the Python arguments (not the command's flags), pickling, and
 no panic of the Rust code reaching Python."""
 import datetime
+import os
 import pickle
 
 import numpy as np
@@ -347,3 +348,27 @@ def test_a_forcing_not_recorded_names_the_u_argument():
     message = str(e.value)
     assert message.startswith("no deterministic dynamics found in array:"), message
     assert "(u=…)" in message and "--" not in message, message
+
+
+def test_an_upper_case_header_is_renamed_not_given_flags(tmp_path):
+    # `T,X`: the command's hint is `give --t-col T --x-col X`, which Python has not got.
+    path = tmp_path / "upper.csv"
+    path.write_text("T,X\n" + "".join(f"{i / 100},{np.sin(i / 10)}\n" for i in range(300)))
+    for call in (lssi.identify, lssi.read_recording):
+        with pytest.raises(ValueError) as e:
+            call(path)
+        message = str(e.value)
+        assert "differs only in case" in message and "rename the file's columns" in message
+        assert "--" not in message, message
+
+
+def test_a_path_is_read_as_bytes_or_pathlike_and_none_is_a_type_error(tmp_path):
+    # `str(b"a.csv")` is "b'a.csv'": a bytes path was reported missing; None was a file
+    # named "None".
+    path = [p for p in DATA if p.name == "paper-eq17.csv"][0]
+    t, x, _, _ = lssi.read_recording(os.fsencode(path))
+    assert len(t) == len(x) > 1000
+    for call in (lssi.identify, lssi.read_recording):
+        with pytest.raises(TypeError) as e:
+            call(None)
+        assert "path must be a file path" in str(e.value)

@@ -203,10 +203,23 @@ pub fn configure(
         .filter(|d| *d > 0.0)
         .collect();
     if steps.len() < 64 {
+        // Rows enough, but t does not go forward: the rows are out of time order.
+        let back = finite_t.windows(2).filter(|w| w[1] <= w[0]).count();
+        if finite_t.len() > 64 && back >= finite_t.len() / 2 {
+            return Err(IdentifyError(format!(
+                "{file}: t does not increase: it falls or stays at {back} of its {} steps (t from {} to {}), so the rows are not in time order; sort them by t.",
+                finite_t.len() - 1,
+                finite_t[0],
+                finite_t[finite_t.len() - 1]
+            )));
+        }
         return Err(IdentifyError(format!(
             "{file}: only {} usable samples; the identifier needs a few hundred at least.",
             steps.len() + 1
         )));
+    }
+    if let Some(why) = magnitude(recording, options) {
+        return Err(IdentifyError(format!("{file}: {why}")));
     }
     steps.sort_by(f64::total_cmp);
     let dt = steps[steps.len() / 2];
@@ -313,6 +326,68 @@ pub fn configure(
     Ok((config, estimated))
 }
 
+/// A channel the identifier cannot compute with, named with the unit change that mends it:
+/// most of its values (less the [`Reference`] taken off x and v) beyond the largest magnitude
+/// a sample may have (`Config::max_abs`, each such sample rejected), or x (or v) so small or
+/// so large that the library's highest power of the level 99 % of its samples stay within,
+/// |x|^P, is under the smallest normal number of the precision (f32: 1.2e-38, at |x| under
+/// 2.3e-13 for P = 3) or over its largest (f32: 3.4e38, at |x| over 4.4e7 for P = 5), where
+/// every regression row is lost. `None` for a usable range.
+fn magnitude(recording: &Recording, options: &Options) -> Option<String> {
+    let limit = Config::default().max_abs;
+    // As the identifier is fed: x and v less the reference `identify` takes off them (none
+    // off a constant x, which the gate names as such).
+    let reference = Reference::of(recording);
+    let channels = [
+        ("x", Some(&recording.x), reference.x, true),
+        ("v", recording.v.as_ref(), reference.v, true),
+        ("u", recording.u.as_ref(), 0.0, false),
+    ];
+    for (name, values, reference, base) in channels {
+        let Some(values) = values else { continue };
+        let fed: Vec<f64> = values
+            .iter()
+            .filter(|v| v.is_finite())
+            .map(|v| (v - reference).abs())
+            .collect();
+        let finite = fed.len();
+        if finite == 0 {
+            continue;
+        }
+        let beyond = fed.iter().filter(|v| **v > limit).count();
+        // The level 99 % of the samples stay within: a spike of 1e300 (repaired, or left
+        // out) is no unit.
+        let mut sorted = fed;
+        sorted.sort_by(f64::total_cmp);
+        let max = sorted[(finite - 1) * 99 / 100];
+        if 2 * beyond > finite {
+            return Some(format!(
+                "{name} reaches {:.3e}: {beyond} of its {finite} values are beyond ±{limit:.0e}, the largest magnitude the identifier takes (each such sample is rejected); give {name} in a larger unit (m rather than µm, say).",
+                sorted[finite - 1]
+            ));
+        }
+        let (smallest, largest, precision) = if options.f32 {
+            (f64::from(f32::MIN_POSITIVE), f64::from(f32::MAX), "f32")
+        } else {
+            (f64::MIN_POSITIVE, f64::MAX, "f64")
+        };
+        let order = i32::from(options.poly_order.max(1));
+        let power = order as f64 * max.log10();
+        let or_f64 = if options.f32 { " or use --f64" } else { "" };
+        if base && max > 0.0 && power < smallest.log10() {
+            return Some(format!(
+                "{name} is within {max:.3e} in 99 % of its samples, so the library's {name}^{order} is under {precision}'s smallest normal number ({smallest:.2e}) and the identifier cannot compute with it; give {name} in a smaller unit (µm rather than m, say){or_f64}."
+            ));
+        }
+        if base && power > largest.log10() {
+            return Some(format!(
+                "1 % of {name}'s samples reach {max:.3e}, so the library's {name}^{order} is over {precision}'s largest number ({largest:.2e}) and the identifier cannot compute with it; give {name} in a larger unit (m rather than µm, say){or_f64}."
+            ));
+        }
+    }
+    None
+}
+
 /// A time column that is not a regular grid, named: rounded to too few decimals (steps of 0),
 /// samples dropped (steps of two or more periods) or jittered (steps off the median by more
 /// than half of it), when such steps are at least 1 % of them; `None` otherwise. Said (after
@@ -402,6 +477,19 @@ pub fn time_axis(recording: &Recording) -> Option<String> {
     ))
 }
 
+/// Why a run with a forgetting time gave no model although samples enough came: `--memory`
+/// of a few dozen samples keeps too few regression rows however many come (0.05 s at 2 kHz
+/// gives none on `lssi gen eveh`'s record; 0.1 s a model). Empty without a memory.
+pub fn memory_hint(config: &Config, accepted: u64) -> String {
+    match config.memory {
+        Some(m) if accepted >= 64 => format!(
+            "; --memory {m} s keeps about {:.0} samples' rows at a time: give a longer memory",
+            m / config.sample_period
+        ),
+        _ => String::new(),
+    }
+}
+
 /// Configures and runs the identifier on a recording, in f32 or f64 as `options` say: what
 /// `lssi identify` reports.
 pub fn identify_recording(
@@ -464,11 +552,12 @@ pub fn run<T: Real>(
     let counters = *identifier.counters();
     let model = identifier.model().ok_or_else(|| {
         IdentifyError(format!(
-            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library{}.",
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library{}{}.",
             counters.accepted,
             counters.rejected() + scan.skipped() as u64,
             identifier.library().len(),
-            crate::identify::blemish::because(&scan)
+            crate::identify::blemish::because(&scan),
+            memory_hint(&config, counters.accepted)
         ))
     })?;
     let mut report = report(

@@ -214,17 +214,27 @@ pub fn constant(recording: &Recording) -> Option<String> {
     if x.is_empty() {
         return None;
     }
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    let sd = (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
-    let level = mean.abs();
-    if sd == 0.0 || x.iter().all(|&v| v == x[0]) {
+    if x.iter().all(|&v| v == x[0]) {
         return Some(format!("x is constant (x = {} in every sample)", x[0]));
     }
-    (sd <= MIN_VARIATION * level || sd <= f64::MIN_POSITIVE).then(|| {
+    // On x over its largest magnitude: a tiny x (1e-300) whose variance underflows is not
+    // constant (`configure` names its range).
+    let scale = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let n = x.len() as f64;
+    let mean = x.iter().map(|v| v / scale).sum::<f64>() / n;
+    let sd = (x
+        .iter()
+        .map(|v| (v / scale - mean) * (v / scale - mean))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let level = mean.abs();
+    (sd <= MIN_VARIATION * level).then(|| {
         format!(
-            "x is nearly constant: its standard deviation ({sd:.2e}) is {:.1e} of its level ({mean:.6e}), under f32's resolution (at least {MIN_VARIATION:.1e} needed)",
-            sd / level
+            "x is nearly constant: its standard deviation ({:.2e}) is {:.1e} of its level ({:.6e}), under f32's resolution (at least {MIN_VARIATION:.1e} needed)",
+            sd * scale,
+            sd / level,
+            mean * scale
         )
     })
 }

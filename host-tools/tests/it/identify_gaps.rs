@@ -5,36 +5,11 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::process::Command;
-
 use lssi_host::identify::blemish::{Kind, Scan};
 use lssi_host::identify::sweep::sweep;
 use lssi_host::recording::{ColumnNames, Recording};
 
-const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
-
-use crate::common::gen_eveh;
-
-/// The truth's terms (name → coefficient) from `lssi gen`'s JSON beside `path`, sin/cos
-/// named by their function alone.
-fn terms(json: &serde_json::Value) -> Vec<(String, f64)> {
-    json["terms"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| {
-            let name = t["term"].as_str().unwrap();
-            let name = if name.starts_with("cos(") {
-                "cos"
-            } else if name.starts_with("sin(") {
-                "sin"
-            } else {
-                name
-            };
-            (name.to_owned(), t["coef"].as_f64().unwrap())
-        })
-        .collect()
-}
+use crate::common::{gen_eveh, identify_json, lssi, terms, truth};
 
 /// A single well driven hard (amplitude 2.2) at 800 and 400 Hz, 25 s, 1–2 % noise: the true
 /// model printed (exit 0; coefficients within 10 %, the damping within 25 %). It was withheld
@@ -60,19 +35,9 @@ fn gate_prints_a_hard_driven_single_well() {
             seed,
         ];
         let path = gen_eveh(dir.path(), &format!("hard{seed}.csv"), &args);
-        let truth: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap())
-                .unwrap();
-        let out = Command::new(LSSI)
-            .arg("identify")
-            .arg(&path)
-            .arg("--json")
-            .output()
-            .unwrap();
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert_eq!(out.status.code(), Some(0), "{args:?}: {stdout}");
-        let found: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-        let (truth, found) = (terms(&truth), terms(&found));
+        let (code, found) = identify_json(&path, &[]);
+        let found = found.unwrap_or_else(|e| panic!("{args:?}: exit {code}: {e}"));
+        let (truth, found) = (terms(&truth(&path)), terms(&found));
         assert_eq!(found.len(), truth.len(), "{args:?}: {found:?}");
         for (name, coef) in &truth {
             let (_, c) = found
@@ -197,12 +162,11 @@ fn blemish_a_step_in_u_is_no_spike_and_every_sentence_names_its_column() {
     assert!(summary.contains("isolated spikes in x and u"), "{summary}");
     // The way a user meets it: the cut record through `lssi identify`, which names no spike
     // at the step (withheld or not: x goes on as driven after u is cut).
-    let out = Command::new(LSSI)
-        .arg("identify")
-        .arg(dir.path().join("cut0.csv"))
-        .arg("--no-refine")
-        .output()
-        .unwrap();
+    let out = lssi(&[
+        "identify",
+        dir.path().join("cut0.csv").to_str().unwrap(),
+        "--no-refine",
+    ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("spike"), "{stderr}");
 }
@@ -256,11 +220,7 @@ fn a_model_driven_by_u_names_no_omega() {
         ("cos.csv", &["--t-end", "6"][..], true),
     ] {
         let path = gen_eveh(dir.path(), name, args);
-        let out = Command::new(LSSI)
-            .args(["identify", "--no-refine"])
-            .arg(&path)
-            .output()
-            .unwrap();
+        let out = lssi(&["identify", "--no-refine", path.to_str().unwrap()]);
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success(), "{name}: {text}");
         assert_eq!(

@@ -23,6 +23,7 @@ mod offsets;
 mod orbits;
 mod plot;
 mod quality;
+mod ranges;
 mod recording;
 mod refine_supports;
 mod replay_cli;

@@ -8,24 +8,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::common::lssi;
-
-/// A small deterministic generator (an LCG, Box–Muller): standard normal draws.
-struct Normal(u64);
-
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn next(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+use crate::common::{Normal, lssi, rk4_step};
 
 /// x'' = acc(x, v, t) by RK4 at `h`, written every `every` steps from `skip` seconds on, as
 /// rows (t − skip, x, u(t)), x with Gaussian noise of `noise` × its standard deviation.
@@ -48,18 +31,7 @@ fn simulate(
         if i % every == 0 && t >= skip {
             rows.push([t - skip, x, u(t)]);
         }
-        let (k1x, k1v) = (v, acc(x, v, t));
-        let (k2x, k2v) = (
-            v + h / 2.0 * k1v,
-            acc(x + h / 2.0 * k1x, v + h / 2.0 * k1v, t + h / 2.0),
-        );
-        let (k3x, k3v) = (
-            v + h / 2.0 * k2v,
-            acc(x + h / 2.0 * k2x, v + h / 2.0 * k2v, t + h / 2.0),
-        );
-        let (k4x, k4v) = (v + h * k3v, acc(x + h * k3x, v + h * k3v, t + h));
-        x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-        v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        (x, v) = rk4_step(&acc, x, v, t, h);
     }
     let n = rows.len() as f64;
     let mean = rows.iter().map(|r| r[1]).sum::<f64>() / n;

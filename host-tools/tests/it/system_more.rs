@@ -8,29 +8,16 @@ use std::collections::BTreeSet;
 
 use serde_json::Value;
 
-use crate::common::lssi;
+use crate::common::{equation_terms, lssi};
 
-/// Each equation's target and its terms' names (sin/cos by kind).
+/// Each equation's target and its terms' names (sin/cos by kind), in the JSON's order.
 fn supports(v: &Value) -> Vec<(String, BTreeSet<String>)> {
     v["equations"]
         .as_array()
         .unwrap()
         .iter()
         .map(|e| {
-            let terms = e["terms"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|t| {
-                    t["term"]
-                        .as_str()
-                        .unwrap()
-                        .split('(')
-                        .next()
-                        .unwrap()
-                        .to_owned()
-                })
-                .collect();
+            let terms = equation_terms(e).into_keys().collect();
             (e["target"].as_str().unwrap().to_owned(), terms)
         })
         .collect()

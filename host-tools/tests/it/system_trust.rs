@@ -6,70 +6,32 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::collections::BTreeMap;
-
 use serde_json::Value;
 
-use crate::common::lssi;
-
-/// Each equation's terms (sin/cos by kind) and coefficients.
-fn equations(v: &Value) -> BTreeMap<String, BTreeMap<String, f64>> {
-    v["equations"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| {
-            let terms = e["terms"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|t| {
-                    let name = t["term"].as_str().unwrap();
-                    (
-                        name.split('(').next().unwrap().to_owned(),
-                        t["coef"].as_f64().unwrap(),
-                    )
-                })
-                .collect();
-            (e["target"].as_str().unwrap().to_owned(), terms)
-        })
-        .collect()
-}
+use crate::common::{generate, lssi, paired_equations, truth};
 
 /// Generates `args`, identifies the record as a user does, and holds the outcome to the true
 /// model or withheld; returns stderr of a withheld one (`None`: the true model).
 fn true_or_withheld(args: &[&str]) -> Option<String> {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("h.csv");
-    let mut gen_args = vec!["gen"];
-    gen_args.extend(args);
-    gen_args.push(path.to_str().unwrap());
-    let g = lssi(&gen_args);
-    assert!(g.status.success(), "{}", String::from_utf8_lossy(&g.stderr));
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("h.json")).unwrap()).unwrap();
+    let path = generate(dir.path(), "h.csv", args);
+    let truth = truth(&path);
     let o = lssi(&["identify", "--json", path.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
     match o.status.code().unwrap() {
         0 => {
-            let got = equations(&serde_json::from_slice(&o.stdout).unwrap());
-            for (target, want) in equations(&truth) {
-                let have = &got[&target];
-                assert_eq!(
-                    have.keys().collect::<Vec<_>>(),
-                    want.keys().collect::<Vec<_>>(),
-                    "exit 0 with {target} = {have:?} (truth {want:?})"
-                );
-                for (k, w) in &want {
+            let printed = serde_json::from_slice(&o.stdout).unwrap();
+            for (target, have, want) in paired_equations(&printed, &truth) {
+                for (k, (w, _)) in &want {
                     let tolerance = if k == "v" && target.ends_with("''") {
                         0.25
                     } else {
                         0.10
                     };
                     assert!(
-                        (have[k] / w - 1.0).abs() <= tolerance,
+                        (have[k].0 / w - 1.0).abs() <= tolerance,
                         "exit 0 with {target}'s {k} {} (truth {w}): {have:?}",
-                        have[k]
+                        have[k].0
                     );
                 }
             }

@@ -5,55 +5,16 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Command, Output};
 
-use serde_json::Value;
-
-fn lssi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lssi"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Each equation's terms (sin/cos by kind) and coefficients, with standard errors (0 where
-/// absent).
-fn equations(v: &Value) -> BTreeMap<String, BTreeMap<String, (f64, f64)>> {
-    v["equations"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| {
-            let terms = e["terms"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|t| {
-                    let name = t["term"].as_str().unwrap();
-                    let key = name.split('(').next().unwrap().to_owned();
-                    let se = t.get("se").and_then(Value::as_f64).unwrap_or(0.0);
-                    (key, (t["coef"].as_f64().unwrap(), se))
-                })
-                .collect();
-            (e["target"].as_str().unwrap().to_owned(), terms)
-        })
-        .collect()
-}
+use crate::common::{generate, lssi, paired_equations, truth};
 
 /// Generates `args` into `dir`, identifies it (with `extra` flags) and checks the outcome:
 /// the truth's terms with x'''s damping and coupling within 2.5 of their ± of the truth's
 /// (the ± cover it), or withheld naming why. Returns the exit status and stderr.
 fn true_or_withheld(dir: &Path, args: &[&str], extra: &[&str]) -> (i32, String) {
-    let path = dir.join("h.csv");
-    let mut gen_args = vec!["gen"];
-    gen_args.extend(args);
-    gen_args.push(path.to_str().unwrap());
-    let g = lssi(&gen_args);
-    assert!(g.status.success(), "{}", String::from_utf8_lossy(&g.stderr));
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("h.json")).unwrap()).unwrap();
+    let path = generate(dir, "h.csv", args);
+    let truth = truth(&path);
     let mut id_args = vec!["identify", "--json"];
     id_args.extend(extra);
     id_args.push(path.to_str().unwrap());
@@ -62,14 +23,8 @@ fn true_or_withheld(dir: &Path, args: &[&str], extra: &[&str]) -> (i32, String) 
     let code = o.status.code().unwrap();
     match code {
         0 => {
-            let got = equations(&serde_json::from_slice(&o.stdout).unwrap());
-            for (target, want) in equations(&truth) {
-                let have = &got[&target];
-                assert_eq!(
-                    have.keys().collect::<Vec<_>>(),
-                    want.keys().collect::<Vec<_>>(),
-                    "{target}: printed {have:?}, truth {want:?}"
-                );
+            let printed = serde_json::from_slice(&o.stdout).unwrap();
+            for (target, have, want) in paired_equations(&printed, &truth) {
                 // The damping/coupling split (v and the electrical state in x''): the other
                 // refined ± are not widened, and the refinement's are tight (x 3 of them off).
                 let split = ["v", "V", "i"];

@@ -5,59 +5,14 @@
 
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use crate::common::lssi;
-
-/// `lssi gen eveh ARGS PATH`.
-fn gen_eveh(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
-    let path = dir.join(name);
-    let mut all = vec!["gen", "eveh"];
-    all.extend_from_slice(args);
-    all.push(path.to_str().unwrap());
-    let out = lssi(&all);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    path
-}
-
-/// `lssi identify --json PATH`: the exit code and the JSON (exit 0) or stderr.
-fn identify(path: &Path) -> (i32, Result<serde_json::Value, String>) {
-    let out = lssi(&["identify", "--json", path.to_str().unwrap()]);
-    let code = out.status.code().unwrap();
-    if code == 0 {
-        (code, Ok(serde_json::from_slice(&out.stdout).unwrap()))
-    } else {
-        (code, Err(String::from_utf8_lossy(&out.stderr).into_owned()))
-    }
-}
-
-/// The terms of a model JSON by kind (harmonics as `cos`/`sin`) with their coefficients.
-fn terms(json: &serde_json::Value) -> Vec<(String, f64)> {
-    json["terms"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| {
-            let name = t["term"].as_str().unwrap();
-            let kind = name.split('(').next().unwrap().to_owned();
-            (kind, t["coef"].as_f64().unwrap())
-        })
-        .collect()
-}
-
-/// The truth `lssi gen` wrote beside `path`.
-fn truth(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap()).unwrap()
-}
+use crate::common::{Normal, gen_eveh, identify_json, rk4_step, terms, truth};
 
 /// Exit 0 with the truth's terms (coefficients within 10 %, the damping within 25 %, as
 /// `scripts/hostile-more.sh` judges), or exit 3 whose sentence holds `reason`.
 fn true_or_withheld(path: &Path, reason: &str) -> bool {
-    let (code, out) = identify(path);
+    let (code, out) = identify_json(path, &[]);
     match out {
         Ok(json) => {
             let want = terms(&truth(path));
@@ -120,7 +75,7 @@ fn a_steady_orbit_the_model_misses_is_withheld() {
                 seed,
             ],
         );
-        let (code, out) = identify(&path);
+        let (code, out) = identify_json(&path, &[]);
         let periodic = out
             .as_ref()
             .is_err_and(|e| e.contains("repeats the forcing's period"));
@@ -201,7 +156,7 @@ fn a_refined_coefficient_lies_within_two_of_its_standard_errors_at_125_hz() {
     }
     let path = dir.path().join("d16.csv");
     std::fs::write(&path, out).unwrap();
-    let (code, json) = identify(&path);
+    let (code, json) = identify_json(&path, &[]);
     let json = json.unwrap_or_else(|e| panic!("exit {code}: {e}"));
     let want = terms(
         &serde_json::from_str(&std::fs::read_to_string(format!("{root}.json")).unwrap()).unwrap(),
@@ -212,23 +167,6 @@ fn a_refined_coefficient_lies_within_two_of_its_standard_errors_at_125_hz() {
         let (c, se) = (t["coef"].as_f64().unwrap(), t["se"].as_f64().unwrap());
         let w = want.iter().find(|(k, _)| k == kind).unwrap().1;
         assert!((c - w).abs() <= 2.0 * se, "{name}: {c} ± {se}, truth {w}");
-    }
-}
-
-/// A small deterministic generator (an LCG, Box–Muller): standard normal draws.
-struct Normal(u64);
-
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn next(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
     }
 }
 
@@ -246,18 +184,7 @@ fn random_beam(path: &Path, seed: u64) {
     for &f in &force {
         xs.push(x);
         for _ in 0..4 {
-            let (k1x, k1v) = (v, acc(x, v, f));
-            let (k2x, k2v) = (
-                v + 0.5 * h * k1v,
-                acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v, f),
-            );
-            let (k3x, k3v) = (
-                v + 0.5 * h * k2v,
-                acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v, f),
-            );
-            let (k4x, k4v) = (v + h * k3v, acc(x + h * k3x, v + h * k3v, f));
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+            (x, v) = rk4_step(|x, v, _| acc(x, v, f), x, v, 0.0, h);
         }
     }
     let mean = xs.iter().sum::<f64>() / n as f64;
@@ -284,7 +211,7 @@ fn a_random_excitation_without_u_is_not_named_a_chirp() {
     for seed in 2..6 {
         let path = dir.path().join(format!("random{seed}.csv"));
         random_beam(&path, seed);
-        let (code, out) = identify(&path);
+        let (code, out) = identify_json(&path, &[]);
         let err = out
             .err()
             .unwrap_or_else(|| panic!("seed {seed}: a model, exit {code}"));

@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import numbers
+import os
 from collections.abc import Mapping
 from typing import Any, Dict, List, Optional, Tuple
 
@@ -953,9 +954,20 @@ class Stream:
         return m
 
 
+def _path(path) -> str:
+    """A file path given as str, bytes or os.PathLike, as text (``str(b"a.csv")`` would be
+    the name ``b'a.csv'``); TypeError for anything else (None, a number)."""
+    try:
+        return os.fsdecode(os.fspath(path))
+    except TypeError:
+        raise TypeError(
+            f"path must be a file path (str, bytes or os.PathLike), not {path!r}."
+        ) from None
+
+
 def read_recording(path: str):
     """Reads a recording file as ``lssi identify`` does: (t, x, v or None, u or None)."""
-    return _lssi.read_recording(str(path))
+    return _lssi.read_recording(_path(path))
 
 
 def identify(path, load_ohms=None, **options) -> Model:
@@ -972,6 +984,7 @@ def identify(path, load_ohms=None, **options) -> Model:
     ``load_ohms`` (the command's ``--load-ohms``) adds the harvester in physical terms
     (``Model.harvester()``); ``coupling_order`` is its ``--coupling-order``."""
     m = Model(**options)
+    path = _path(path)
     load = _positive("load_ohms", load_ohms, "a positive resistance in ohms (or None)")
     system = _lssi.identify_system(str(path), *m._options(), coupling_order=m.coupling_order,
                                    load_ohms=load, refine=m.refine)

@@ -46,10 +46,11 @@ fn finish<T: Real>(
     let counters = *identifier.counters();
     let model = identifier.model().ok_or_else(|| {
         IdentifyError(format!(
-            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library.",
+            "{file}: no model: {} samples were accepted and {} rejected, too few regression rows for the {}-term library{}.",
             counters.accepted,
             counters.rejected(),
-            identifier.library().len()
+            identifier.library().len(),
+            identify::memory_hint(config, counters.accepted)
         ))
     })?;
     Ok(identify::report(
