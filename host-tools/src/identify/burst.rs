@@ -9,7 +9,8 @@
 //!
 //! - the candidates are the samples whose centred residual is beyond the spike rule's limit
 //!   (the same [`Limit`], so a clean record, whose residuals stay under it, has none); nearby
-//!   candidates (at most 3 apart) make a cluster, and a cluster longer than [`BURST_MAX`] + 6
+//!   candidates (at most 3 apart) make a cluster (a burst may begin up to [`BURST_MAX`] + 1
+//!   before it: only some of the residuals it moves may be beyond the limit), and a cluster longer than [`BURST_MAX`] + 6
 //!   samples is not a burst;
 //! - a burst a..=b is a hypothesis: its samples predicted by the least-squares cubic through
 //!   [`CONTEXT`] kept samples on each side (or, at the record's end or beside a gap, through the
@@ -182,8 +183,11 @@ pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
         if c.len() > BURST_MAX + 6 {
             continue;
         }
-        let first = c.start.saturating_sub(2);
-        let last = (c.end + 1).min(n - 1);
+        // A burst moves the residuals from two before to two after it, and only some of
+        // them may be beyond the limit (a burst of 3 of height h: h/6, h/2, h/2, h/3, h/2,
+        // h/2, h/6), so it may start up to BURST_MAX + 1 before the cluster's first.
+        let first = c.start.saturating_sub(BURST_MAX + 1);
+        let last = (c.end + BURST_MAX).min(n - 1);
         let mut found: Option<(usize, Fill, f64)> = None;
         let mut shortest = 0;
         for k in 1..=BURST_MAX {
