@@ -9,7 +9,7 @@
 //!
 //! - the candidates are the samples whose centred residual is beyond the spike rule's limit
 //!   (the same [`Limit`], so a clean record, whose residuals stay under it, has none); nearby
-//!   candidates (at most 3 apart) make a cluster (a burst may begin up to [`BURST_MAX`] + 1
+//!   candidates (at most 4 apart) make a cluster (a burst may begin up to [`BURST_MAX`] + 1
 //!   before it: only some of the residuals it moves may be beyond the limit), and a cluster longer than [`BURST_MAX`] + 6
 //!   samples is not a burst;
 //! - a burst a..=b is a hypothesis: its samples predicted by the least-squares cubic through
@@ -115,10 +115,18 @@ fn fill(s: &[f64], scan: &Scan, a: usize, b: usize) -> Option<Fill> {
     })
 }
 
-/// The largest |r − centre| of the centred residuals from `a − 2` to `b + 2` of `s` with
+/// The largest |r − centre| of the centred residuals from `a − 2` to `b + 2` (and over the
+/// whole `cluster`: a burst of 3 is not explained by a burst of 2 beside it) of `s` with
 /// `a..=b` replaced by `values`, over the samples whose stencil is kept and evenly spaced;
 /// `None` when there is none.
-fn after_repair(s: &[f64], scan: &Scan, limit: &Limit, a: usize, values: &[f64]) -> Option<f64> {
+fn after_repair(
+    s: &[f64],
+    scan: &Scan,
+    limit: &Limit,
+    a: usize,
+    values: &[f64],
+    cluster: &Range<usize>,
+) -> Option<f64> {
     let n = s.len();
     let b = a + values.len() - 1;
     let at = |j: usize| {
@@ -134,7 +142,7 @@ fn after_repair(s: &[f64], scan: &Scan, limit: &Limit, a: usize, values: &[f64])
             && (i - 2..=i + 2).all(|j| (a..=b).contains(&j) || (!scan.skip[j] && s[j].is_finite()))
             && (i - 1..=i + 2).all(|j| !scan.restart[j])
     };
-    (a.saturating_sub(2)..=b + 2)
+    (a.min(cluster.start).saturating_sub(2)..=b.max(cluster.end - 1) + 2)
         .filter(|&i| usable(i))
         .map(|i| {
             let r =
@@ -147,7 +155,14 @@ fn after_repair(s: &[f64], scan: &Scan, limit: &Limit, a: usize, values: &[f64])
 /// Whether the burst `a..=b` explains what is around it: its end samples beyond the limit
 /// from the prediction, and the record with the prediction in its place clean from two
 /// before to two after it. The fill and the largest residual after the repair.
-fn explains(s: &[f64], scan: &Scan, limit: &Limit, a: usize, b: usize) -> Option<(Fill, f64)> {
+fn explains(
+    s: &[f64],
+    scan: &Scan,
+    limit: &Limit,
+    cluster: &Range<usize>,
+    a: usize,
+    b: usize,
+) -> Option<(Fill, f64)> {
     let fill = fill(s, scan, a, b)?;
     let unit = limit.limit / centred_gain();
     let beyond = |i: usize| {
@@ -157,7 +172,7 @@ fn explains(s: &[f64], scan: &Scan, limit: &Limit, a: usize, b: usize) -> Option
     if !(beyond(a) && beyond(b)) {
         return None;
     }
-    let worst = after_repair(s, scan, limit, a, &fill.values)?;
+    let worst = after_repair(s, scan, limit, a, &fill.values, cluster)?;
     (worst <= limit.limit).then_some((fill, worst))
 }
 
@@ -174,7 +189,9 @@ pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
     let mut clusters: Vec<Range<usize>> = Vec::new();
     for &i in &candidates {
         match clusters.last_mut() {
-            Some(c) if i <= c.end + 2 => c.end = i + 1,
+            // At most 4 apart: a burst of 5 of height h moves them by h/2, h/2, h/6, 0, h/6,
+            // h/2, h/2.
+            Some(c) if i <= c.end + 3 => c.end = i + 1,
             _ => clusters.push(i..i + 1),
         }
     }
@@ -196,7 +213,7 @@ pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
                 if b > last {
                     break;
                 }
-                if let Some((fill, worst)) = explains(s, scan, &limit, a, b)
+                if let Some((fill, worst)) = explains(s, scan, &limit, &c, a, b)
                     && found.as_ref().is_none_or(|f| worst < f.2)
                 {
                     found = Some((a, fill, worst));
@@ -212,6 +229,9 @@ pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
         };
         if shortest < 2 {
             // A spike: the spike rule's.
+            continue;
+        }
+        if out.last().is_some_and(|o| o.rows.end > a) {
             continue;
         }
         out.push(Burst {
