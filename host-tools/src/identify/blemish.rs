@@ -30,6 +30,11 @@
 //!   fitted to the samples 2 to 25 away, against that stencil's own limit, so a spike there is
 //!   found where it is (issue 25), not at its neighbour; such a spike is left out.
 //!
+//! - a burst: 2 to 5 consecutive bad samples in x or a measured v, which the spike rule does
+//!   not find (no sample of it dominates its neighbours): see [`crate::identify::burst`]. It
+//!   is found before the spikes, named as one blemish (its rows), and repaired with the cubic
+//!   through the samples around it as a spike is (left out at a stretch's end).
+//!
 //! - a stuck sensor: a run of samples in which x (or a measured v) keeps exactly the same
 //!   value for at least [`STUCK_PERIODS`] of its dominant period (and [`STUCK_MIN_ROWS`]
 //!   samples) while it varies elsewhere. No oscillator's coordinate stays bit for bit
@@ -67,6 +72,9 @@ pub enum Kind {
     Early,
     /// An isolated spike (left out).
     Spike,
+    /// The first sample of a burst of a few consecutive bad samples ([`Blemish::rows`] long;
+    /// repaired or left out as a spike is).
+    Burst,
     /// The first sample of a run in which a channel is stuck at one value (the rest of the
     /// run left out; [`Blemish::rows`] long).
     Stuck,
@@ -80,6 +88,7 @@ impl Kind {
             Kind::Gap => "time gaps",
             Kind::Early => "samples less than half a period after the previous one",
             Kind::Spike => "isolated spikes",
+            Kind::Burst => "bursts of consecutive bad samples",
             Kind::Stuck => "stretches where the sensor is stuck at one value",
         }
     }
@@ -91,6 +100,7 @@ impl Kind {
             Kind::Gap => "time gap",
             Kind::Early => "sample less than half a period after the previous one",
             Kind::Spike => "isolated spike",
+            Kind::Burst => "burst of consecutive bad samples",
             Kind::Stuck => "stretch where the sensor is stuck at one value",
         }
     }
@@ -110,7 +120,7 @@ pub struct Blemish {
     /// A spike given to the identifier as the cubic through its neighbours (see
     /// [`Scan::repairs`]) rather than left out.
     pub repaired: bool,
-    /// Samples it covers: 1, or a stuck run's length.
+    /// Samples it covers: 1, or a burst's or a stuck run's length.
     pub rows: usize,
     /// The time of its last sample (its own time but for a stuck run).
     pub t_end: f64,
@@ -143,6 +153,20 @@ impl Blemish {
             Kind::Spike => format!(
                 "data row {row} (t = {}): an isolated spike in {} ({:e}); it was left out and the window restarted",
                 self.t, self.channel, self.value
+            ),
+            Kind::Burst => format!(
+                "data rows {row}–{} (t = {}–{} s): a burst of {} bad samples in {} (the first {:e}); {}",
+                row + self.rows - 1,
+                self.t,
+                self.t_end,
+                self.rows,
+                self.channel,
+                self.value,
+                if self.repaired {
+                    "they were replaced by the cubic through the samples around them"
+                } else {
+                    "they were left out and the window restarted"
+                }
             ),
             Kind::Stuck => format!(
                 "data rows {row}–{} (t = {}–{} s): {} is stuck at {} (the same value in {} samples in a row: a sensor that froze, or a logger repeating its last reading); they were left out after the first and the window restarted",
@@ -323,6 +347,55 @@ impl Scan {
                 }
                 last = Some(t[i]);
             }
+            // Bursts, before the spikes (whose rule would take a burst's clean neighbours
+            // for spikes): each sample of one left out, or repaired when every bursting
+            // channel at it has a prediction.
+            let mut predicted: std::collections::BTreeMap<usize, Vec<(usize, Option<f64>)>> =
+                std::collections::BTreeMap::new();
+            let searched = 1 + usize::from(recording.v.is_some());
+            for c in 0..searched {
+                for burst in crate::identify::burst::bursts(channels[c], &scan) {
+                    let (a, b) = (burst.rows.start, burst.rows.end - 1);
+                    for (k, j) in burst.rows.clone().enumerate() {
+                        scan.skip[j] = true;
+                        let value = burst.repair.as_ref().map(|v| v[k]);
+                        predicted.entry(j).or_default().push((c, value));
+                    }
+                    found.push(Blemish {
+                        kind: Kind::Burst,
+                        index: a,
+                        t: t[a],
+                        value: channels[c][a],
+                        repaired: burst.repair.is_some(),
+                        rows: burst.rows.len(),
+                        t_end: t[b],
+                        channel: channel_names[c],
+                    });
+                }
+            }
+            for (&j, values) in &predicted {
+                if values.iter().any(|(_, v)| v.is_none()) || !finite(j) {
+                    continue;
+                }
+                let value = |c: usize| {
+                    values
+                        .iter()
+                        .find(|(k, _)| *k == c)
+                        .and_then(|(_, v)| *v)
+                        .unwrap_or(channels[c][j])
+                };
+                let v = recording.v.is_some().then(|| value(1));
+                let u = recording
+                    .u
+                    .is_some()
+                    .then(|| value(if recording.v.is_some() { 2 } else { 1 }));
+                scan.repairs.insert(j, Repaired { x: value(0), v, u });
+            }
+            // A burst whose samples are not all repaired (another channel's left out) is
+            // left out.
+            for b in found.iter_mut().filter(|b| b.kind == Kind::Burst) {
+                b.repaired = (b.index..b.index + b.rows).all(|j| scan.repairs.contains_key(&j));
+            }
             let mut spiking: Vec<(usize, usize)> = Vec::new();
             for (c, channel) in channels.iter().enumerate() {
                 for i in spikes(channel, &scan) {
@@ -486,6 +559,7 @@ impl Scan {
             Kind::Gap,
             Kind::Early,
             Kind::Spike,
+            Kind::Burst,
             Kind::Stuck,
         ];
         kinds
@@ -499,6 +573,25 @@ impl Scan {
                     .collect();
                 if rows.is_empty() {
                     return None;
+                }
+                if k == Kind::Burst {
+                    let bursts: Vec<String> = self
+                        .blemishes
+                        .iter()
+                        .filter(|b| b.kind == k)
+                        .map(|b| {
+                            format!(
+                                "a burst of {} bad samples in {} at data rows {}–{} (t = {}–{} s)",
+                                b.rows,
+                                b.channel,
+                                b.index + 1,
+                                b.index + b.rows,
+                                b.t,
+                                b.t_end
+                            )
+                        })
+                        .collect();
+                    return Some(bursts.join(", "));
                 }
                 if k == Kind::Stuck {
                     let runs: Vec<String> = self
@@ -578,7 +671,7 @@ fn gaussian_alpha() -> f64 {
 /// (offsets 2 to 25 from the sample, skipping its neighbour so that a spike there does not
 /// move it). 24 samples give a noise gain of 1.63 (the centred stencil's: 1.39; 8 samples:
 /// 5.3), so a spike at the end is found from 20 noise σ on.
-const EDGE_FIT: usize = 24;
+pub(crate) const EDGE_FIT: usize = 24;
 
 /// At most this many positions measure the one-sided stencil's limit (evenly spread).
 const EDGE_SAMPLE: usize = 100_000;
@@ -629,9 +722,9 @@ fn stuck(s: &[f64], scan: &Scan) -> Vec<Range<usize>> {
 
 /// The centre of a residual and the limit of |r − centre| beyond which a sample is a spike.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Limit {
-    centre: f64,
-    limit: f64,
+pub(crate) struct Limit {
+    pub(crate) centre: f64,
+    pub(crate) limit: f64,
 }
 
 impl Limit {
@@ -651,7 +744,7 @@ impl Limit {
     /// so the percentiles hold while fewer than one sample in 500 is a spike. q₉₅ is taken at
     /// least 1.96 σ, its Gaussian value, so that a quantised channel whose residuals are
     /// mostly zero does not extrapolate from nothing.
-    fn of(residuals: &[Option<f64>], floor: f64) -> Option<Self> {
+    pub(crate) fn of(residuals: &[Option<f64>], floor: f64) -> Option<Self> {
         let mut values: Vec<f64> = residuals
             .iter()
             .flatten()
@@ -686,7 +779,7 @@ impl Limit {
     }
 
     /// |r − centre|.
-    fn size(&self, r: f64) -> f64 {
+    pub(crate) fn size(&self, r: f64) -> f64 {
         if r.is_finite() {
             (r - self.centre).abs()
         } else {
@@ -697,13 +790,13 @@ impl Limit {
 
 /// The noise gain of the centred stencil, √(1 + 2 (2/3)² + 2 (1/6)²) ≈ 1.394: the quantisation
 /// step through it.
-fn centred_gain() -> f64 {
+pub(crate) fn centred_gain() -> f64 {
     (1.0f64 + 8.0 / 9.0 + 1.0 / 18.0).sqrt()
 }
 
 /// The quantisation step of a channel: the smallest non-zero difference of consecutive
 /// samples (0 when there is none).
-fn quantum(s: &[f64]) -> f64 {
+pub(crate) fn quantum(s: &[f64]) -> f64 {
     let q = s
         .windows(2)
         .map(|w| (w[1] - w[0]).abs())
@@ -714,7 +807,7 @@ fn quantum(s: &[f64]) -> f64 {
 
 /// The centred cubic residual r = s − (−s₋₂ + 4s₋₁ + 4s₊₁ − s₊₂)/6 of every sample whose four
 /// neighbours are kept and evenly spaced.
-fn centred(s: &[f64], scan: &Scan) -> Vec<Option<f64>> {
+pub(crate) fn centred(s: &[f64], scan: &Scan) -> Vec<Option<f64>> {
     let n = s.len();
     let usable = |i: usize| {
         i >= 2
@@ -733,7 +826,7 @@ fn centred(s: &[f64], scan: &Scan) -> Vec<Option<f64>> {
 
 /// The value at `at` of the least-squares cubic through `points` (offset, value); `None` with
 /// fewer than five points or a singular fit.
-fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
+pub(crate) fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
     if points.len() < 5 {
         return None;
     }

@@ -12,6 +12,7 @@
 
 pub mod batch;
 pub mod blemish;
+pub mod burst;
 pub mod device_rate;
 mod omega;
 pub mod orbit;

@@ -3,6 +3,7 @@
 mod batch_refine;
 mod blemishes;
 mod bundled;
+mod bursts;
 mod classes;
 mod clean_failures;
 mod cli;
