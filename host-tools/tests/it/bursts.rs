@@ -7,23 +7,16 @@
 #![allow(clippy::unwrap_used)] // a test fails by panicking
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use lssi_host::identify::blemish::{Kind, Scan};
 use lssi_host::recording::{ColumnNames, Recording};
 
-const LSSI: &str = env!("CARGO_BIN_EXE_lssi");
+use crate::common::{gen_eveh, lssi};
 
 /// `lssi gen eveh` with `args`: the file's header and data lines.
 fn generated(dir: &Path, args: &[&str]) -> (String, Vec<String>) {
-    let path = dir.join("clean.csv");
-    let out = Command::new(LSSI)
-        .args(["gen", "eveh"])
-        .args(args)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{out:?}");
+    let path = gen_eveh(dir, "clean.csv", args);
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines().map(str::to_owned);
     let header = lines.next().unwrap();
@@ -55,7 +48,10 @@ fn with_burst(
 }
 
 fn run(args: &[&str], path: &Path) -> Output {
-    Command::new(LSSI).args(args).arg(path).output().unwrap()
+    let mut all = args.to_vec();
+    let path = path.to_str().unwrap();
+    all.push(path);
+    lssi(&all)
 }
 
 /// The largest |x| of the rows.
@@ -141,13 +137,11 @@ fn bursts_at_the_first_middle_and_last_rows_are_named_and_a_model_printed() {
 fn the_burst_rule_finds_bursts_only() {
     let dir = tempfile::tempdir().unwrap();
     for seed in ["1", "2", "3"] {
-        let path = dir.path().join(format!("noisy-{seed}.csv"));
-        let out = Command::new(LSSI)
-            .args(["gen", "eveh", "--delta", "0.05", "--seed", seed])
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "{out:?}");
+        let path = gen_eveh(
+            dir.path(),
+            &format!("noisy-{seed}.csv"),
+            &["--delta", "0.05", "--seed", seed],
+        );
         let r = Recording::read(&path, &ColumnNames::default()).unwrap();
         assert!(Scan::of(&r).is_clean(), "{:?}", Scan::of(&r).summary());
     }
