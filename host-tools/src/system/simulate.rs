@@ -84,16 +84,36 @@ impl SimTerm {
     /// Its value at state `s`, time `t`, input `u`.
     pub fn eval(&self, s: &State, t: f64, u: f64) -> f64 {
         match *self {
+            SimTerm::Sin(w) => (w * t).sin(),
+            SimTerm::Cos(w) => (w * t).cos(),
+            _ => self.eval_algebraic(s, u),
+        }
+    }
+
+    /// [`Self::eval`] with the harmonics' values at `t` taken from (and kept in) `trig`: a
+    /// free run evaluates every equation's harmonics at the same few times of each step.
+    /// Bit for bit the same value.
+    fn eval_cached(&self, s: &State, t: f64, u: f64, trig: &mut Trig) -> f64 {
+        match *self {
+            SimTerm::Sin(w) => trig.value(w, t, true),
+            SimTerm::Cos(w) => trig.value(w, t, false),
+            _ => self.eval_algebraic(s, u),
+        }
+    }
+
+    /// The value of a term that is not a harmonic.
+    #[inline(always)]
+    fn eval_algebraic(&self, s: &State, u: f64) -> f64 {
+        match *self {
             SimTerm::Constant => 1.0,
             SimTerm::Monomial(p) => s
                 .iter()
                 .zip(p)
                 .filter(|(_, p)| *p > 0)
-                .map(|(q, p)| q.powi(i32::from(p)))
+                .map(|(q, p)| powi(*q, p))
                 .product(),
-            SimTerm::Sin(w) => (w * t).sin(),
-            SimTerm::Cos(w) => (w * t).cos(),
             SimTerm::Input => u,
+            SimTerm::Sin(_) | SimTerm::Cos(_) => unreachable!("harmonics are evaluated at t"),
         }
     }
 
@@ -148,6 +168,58 @@ impl SimTerm {
                 out
             }
         }
+    }
+}
+
+/// `q^p` by the square-and-multiply that `f64::powi` runs (compiler-builtins' `__powidf2`),
+/// so bit for bit its value, inlined: the free run's inner loop called `powi` for every factor.
+#[inline(always)]
+fn powi(q: f64, p: u8) -> f64 {
+    let (mut r, mut a, mut n) = (1.0f64, q, p);
+    loop {
+        if n & 1 == 1 {
+            r *= a;
+        }
+        n >>= 1;
+        if n == 0 {
+            return r;
+        }
+        a *= a;
+    }
+}
+
+/// The harmonics' values at one time, computed once and shared by every equation and every
+/// RK4 stage at that time (k2 and k3 share theirs).
+struct Trig {
+    /// The time the values are for (NaN: none yet).
+    t: f64,
+    /// (W, sin?, value) at `t`.
+    values: Vec<(f64, bool, f64)>,
+}
+
+impl Trig {
+    fn new() -> Self {
+        Trig {
+            t: f64::NAN,
+            values: Vec::new(),
+        }
+    }
+
+    fn value(&mut self, w: f64, t: f64, sin: bool) -> f64 {
+        if t.to_bits() != self.t.to_bits() {
+            self.t = t;
+            self.values.clear();
+        }
+        if let Some(&(_, _, v)) = self
+            .values
+            .iter()
+            .find(|(x, s, _)| x.to_bits() == w.to_bits() && *s == sin)
+        {
+            return v;
+        }
+        let v = if sin { (w * t).sin() } else { (w * t).cos() };
+        self.values.push((w, sin, v));
+        v
     }
 }
 
@@ -330,37 +402,46 @@ impl SystemSim {
 
     /// `s` with each algebraic channel set to its equation's value at `s`, `t`, `u`.
     pub fn complete(&self, s: &State, t: f64, u: f64) -> State {
+        self.complete_with(s, t, u, &mut Trig::new())
+    }
+
+    fn complete_with(&self, s: &State, t: f64, u: f64, trig: &mut Trig) -> State {
         let mut out = *s;
         let d = self.displacements;
         for k in 0..self.electrical.len().min(2) {
             if self.algebraic[k]
                 && let Some(eq) = self.equations.get(d + k)
             {
-                out[2 + k] = eq.iter().map(|(term, c)| c * term.eval(s, t, u)).sum();
+                out[2 + k] = eq
+                    .iter()
+                    .map(|(term, c)| c * term.eval_cached(s, t, u, trig))
+                    .sum();
             }
         }
         out
     }
 
     /// The state's derivative (an algebraic channel's is 0: it is set from the others).
-    fn rate(&self, s: &State, t: f64, u: f64) -> State {
+    fn rate(&self, s: &State, t: f64, u: f64, trig: &mut Trig) -> State {
         let completed;
         let s = if self.has_algebraic() {
-            completed = self.complete(s, t, u);
+            completed = self.complete_with(s, t, u, trig);
             &completed
         } else {
             s
         };
         let [ox, ov] = self.offsets;
         let shifted = [s[0] - ox, s[1] - ov, s[2], s[3], s[4], s[5]];
-        let f = |k: usize| -> f64 {
+        let mut f = |k: usize| -> f64 {
             if k >= self.displacements && self.algebraic.get(k - self.displacements) == Some(&true)
             {
                 return 0.0;
             }
             let at = if k == 0 { &shifted } else { s };
             self.equations.get(k).map_or(0.0, |eq| {
-                eq.iter().map(|(term, c)| c * term.eval(at, t, u)).sum()
+                eq.iter()
+                    .map(|(term, c)| c * term.eval_cached(at, t, u, trig))
+                    .sum()
             })
         };
         let d = self.displacements;
@@ -406,9 +487,10 @@ impl SystemSim {
         let limit = 1e6 * (start.iter().fold(0.0f64, |m, q| m.max(q.abs())) + bound);
         let at = |i: usize| u.get(i).copied().unwrap_or(0.0);
         let mut dead = false;
+        let mut trig = Trig::new();
         for i in 0..t.len() {
             if !dead && self.has_algebraic() {
-                s = self.complete(&s, t[i], at(i));
+                s = self.complete_with(&s, t[i], at(i), &mut trig);
             }
             out.push(if dead { [f64::NAN; 6] } else { s });
             if i + 1 == t.len() || dead {
@@ -426,10 +508,10 @@ impl SystemSim {
                 let f1 = (step + 1) as f64 / substeps as f64;
                 let t0 = t[i] + f0 * span;
                 let (u0, um, u1) = (u_at(f0), u_at(0.5 * (f0 + f1)), u_at(f1));
-                let k1 = self.rate(&s, t0, u0);
-                let k2 = self.rate(&add(&s, &k1, 0.5 * h), t0 + 0.5 * h, um);
-                let k3 = self.rate(&add(&s, &k2, 0.5 * h), t0 + 0.5 * h, um);
-                let k4 = self.rate(&add(&s, &k3, h), t0 + h, u1);
+                let k1 = self.rate(&s, t0, u0, &mut trig);
+                let k2 = self.rate(&add(&s, &k1, 0.5 * h), t0 + 0.5 * h, um, &mut trig);
+                let k3 = self.rate(&add(&s, &k2, 0.5 * h), t0 + 0.5 * h, um, &mut trig);
+                let k4 = self.rate(&add(&s, &k3, h), t0 + h, u1, &mut trig);
                 for j in 0..6 {
                     s[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
                 }
