@@ -89,6 +89,14 @@ pub enum CliError {
         /// What the operating system said.
         source: io::Error,
     },
+    /// An output folder could not be created.
+    #[error("{}: cannot create the folder: {source}.", .path.display())]
+    CreateDir {
+        /// The folder.
+        path: PathBuf,
+        /// What the operating system said.
+        source: io::Error,
+    },
 }
 
 impl CliError {
@@ -101,7 +109,9 @@ impl CliError {
             | CliError::Diverged { .. }
             | CliError::Identify(_)
             | CliError::Input(_) => EXIT_BAD_INPUT,
-            CliError::Write { .. } | CliError::Device(_) => EXIT_FAILURE,
+            CliError::Write { .. } | CliError::CreateDir { .. } | CliError::Device(_) => {
+                EXIT_FAILURE
+            }
             CliError::NoDynamics(_) => EXIT_NO_DYNAMICS,
         }
     }

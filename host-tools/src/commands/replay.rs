@@ -362,12 +362,15 @@ impl ReplayArgs {
             ("--flip-rate", self.flip_rate),
             ("--drop-rate", self.drop_rate),
         ] {
-            // `contains` is false for NaN as well.
-            if !(0.0..=1.0).contains(&value) {
+            // `contains` is false for NaN as well. At 1 every byte is lost (or corrupted):
+            // no frame would ever get through, and the replay would wait for its deadline.
+            if !(0.0..1.0).contains(&value) {
                 return Err(CliError::BadFlag {
                     flag,
                     value: value.to_string(),
-                    requirement: "a probability per byte between 0 and 1".into(),
+                    requirement: "a probability per byte between 0 and 1, less than 1 (at 1 \
+                                  no frame gets through)"
+                        .into(),
                 });
             }
         }
@@ -563,7 +566,7 @@ pub struct ReplayBenchArgs {
 /// wire bytes each sample costs).
 pub fn bench(args: &ReplayBenchArgs) -> Result<(), CliError> {
     let dir = std::env::temp_dir().join(format!("lssi-bench-replay-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).map_err(|e| CliError::Write {
+    std::fs::create_dir_all(&dir).map_err(|e| CliError::CreateDir {
         path: dir.clone(),
         source: e,
     })?;

@@ -67,7 +67,7 @@ pub fn plot_all(
     dir: &Path,
     units: &Units,
 ) -> Result<Figures, CliError> {
-    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::CreateDir {
         path: dir.to_path_buf(),
         source: e,
     })?;
@@ -128,7 +128,7 @@ pub fn plot_system(
     dir: &Path,
 ) -> Result<Figures, CliError> {
     use crate::system::simulate::{SystemSim, first_state, nrmse};
-    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::CreateDir {
         path: dir.to_path_buf(),
         source: e,
     })?;

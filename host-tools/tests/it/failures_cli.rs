@@ -463,6 +463,8 @@ fn replay_refuses_bad_fault_options_with_its_own_sentence() {
         ("--flip-rate", "NaN"),
         ("--drop-rate", "-1"),
         ("--drop-rate", "inf"),
+        ("--drop-rate", "1"),
+        ("--flip-rate", "1"),
     ] {
         let out = lssi(&["replay", &file, flag, value, "--log", arg(&log)]);
         assert_eq!(out.status.code(), Some(2), "{flag} {value}");
@@ -470,7 +472,7 @@ fn replay_refuses_bad_fault_options_with_its_own_sentence() {
         assert!(
             err.starts_with(&format!("lssi: {flag} "))
                 && err
-                    .contains("cannot be used: it must be a probability per byte between 0 and 1."),
+                    .contains("cannot be used: it must be a probability per byte between 0 and 1, less than 1 (at 1 no frame gets through)."),
             "{flag} {value}: {err}"
         );
         assert_eq!(err.lines().count(), 1, "{err}");
@@ -586,4 +588,20 @@ fn a_replay_that_gives_up_on_firmware_sim_does_not_advise_resuming_its_dead_pty(
         last.contains("firmware-sim ran on that pty for this replay only"),
         "{last}"
     );
+}
+
+/// A figures folder that cannot be created is named as a folder (it said "cannot write the
+/// file"), exit status 1, nothing drawn.
+#[test]
+fn plot_names_a_folder_it_cannot_create() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = generate(dir.path(), "p.csv", 4);
+    let out = lssi(&["plot", &file, "--out", "/proc/lssi-no-such-folder"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = stderr(&out);
+    assert!(
+        err.starts_with("lssi: /proc/lssi-no-such-folder: cannot create the folder:"),
+        "{err}"
+    );
+    assert!(out.stdout.is_empty());
 }
