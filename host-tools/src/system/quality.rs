@@ -1157,9 +1157,9 @@ pub fn dropped_term(
         .any(|eq| active_monomials(eq).iter().any(|m| m[2] > 0 || m[3] > 0));
     if !coupled_anywhere {
         for (k, eq) in sim.equations.iter().enumerate().skip(d).take(2) {
-            let moved = active_monomials(eq).iter().any(|m| {
-                (m[0] > 0 || m[1] > 0 || m[4] > 0 || m[5] > 0) && m[2] == 0 && m[3] == 0
-            });
+            let moved = active_monomials(eq)
+                .iter()
+                .any(|m| (m[0] > 0 || m[1] > 0 || m[4] > 0 || m[5] > 0) && m[2] == 0 && m[3] == 0);
             if !moved {
                 continue;
             }
