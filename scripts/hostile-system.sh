@@ -9,6 +9,9 @@
 #               (x'''s damping v within 25 %)
 #   withheld    exit 3 (the reason's sentence shown)
 #   refused     exit 2 (the reason's sentence shown)
+#   true within ±  exit 0, every equation with the truth's terms and no others, each
+#               coefficient within the bars above or within two of its printed standard errors
+#               (the model's ± covers the truth; the first such coefficient shown)
 #   WRONG       exit 0 with any other model (the first equation that differs shown)
 # Prints a markdown table (one row a seed) and the counts.
 #
@@ -81,20 +84,30 @@ def run(seed):
             f.write(f'exit {out.returncode}\n{out.stdout}\n{out.stderr}')
     os.remove(path)
     if out.returncode == 0:
-        got = {e['target']: {key(t['term']): t['coef'] for t in e['terms']}
-               for e in json.loads(out.stdout)['equations']}
+        equations = json.loads(out.stdout)['equations']
+        got = {e['target']: {key(t['term']): t['coef'] for t in e['terms']} for e in equations}
+        ses = {e['target']: {key(t['term']): t.get('se') or 0.0 for t in e['terms']} for e in equations}
         worst = 0.0
+        covered = None
         for e in truth['equations']:
             want = {key(t['term']): t['coef'] for t in e['terms']}
             have = got.get(e['target'], {})
-            ok = set(have) == set(want) and all(
-                abs(have[k] / w - 1) <= (0.25 if (k == 'v' and e['target'].endswith("''")) else 0.10)
-                for k, w in want.items())
-            if not ok:
+            se = ses.get(e['target'], {})
+            bar = lambda k: 0.25 if (k == 'v' and e['target'].endswith("''")) else 0.10
+            within = set(have) == set(want) and all(abs(have[k] / w - 1) <= bar(k) for k, w in want.items())
+            if not within and set(have) == set(want) and all(
+                    abs(have[k] / w - 1) <= bar(k) or abs(have[k] - w) <= 2 * se[k] for k, w in want.items()):
+                far = next(k for k, w in want.items() if abs(have[k] / w - 1) > bar(k))
+                covered = covered or (f"{e['target']}'s {far} {have[far]:.4g} ± {se[far]:.2g} "
+                                      f"(truth {want[far]:.4g}, {100 * abs(have[far] / want[far] - 1):.0f} % off)")
+                continue
+            if not within:
                 eq = ' '.join(f'{v:+.4g} {k}' for k, v in have.items())
                 tr = ' '.join(f'{v:+.4g} {k}' for k, v in want.items())
                 return p, 'WRONG', f"{e['target']} = {eq} (truth {tr})"
             worst = max([worst] + [abs(have[k] / w - 1) for k, w in want.items()])
+        if covered:
+            return p, 'true within ±', covered
         return p, 'true model', f'worst coefficient {100 * worst:.2g} %'
     reason = out.stderr.strip().split('\n')[-1] if out.stderr.strip() else ''
     reason = reason.split(': ', 1)[-1][:110].replace('|', '/')
@@ -112,6 +125,6 @@ for seed, (p, outcome, detail) in zip(seeds, results):
           f"{p['t_end']:g} | {100 * p['delta']:g} % | {p['observe']} | {'yes' if p['input'] else 'no'} | "
           f"{outcome} | {detail} |")
 print()
-print(' · '.join(f'{k}: {counts.get(k, 0)}' for k in ['true model', 'withheld', 'refused', 'WRONG'])
+print(' · '.join(f'{k}: {counts.get(k, 0)}' for k in ['true model', 'true within ±', 'withheld', 'refused', 'WRONG'])
       + f' (of {len(seeds)})')
 PY

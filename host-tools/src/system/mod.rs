@@ -722,13 +722,23 @@ pub fn identify_system(
     if let Some(outcome) = proportional::identify(data, options, args, no_refine, &report)? {
         return Ok(outcome);
     }
+    let streaming = (!no_refine).then(|| report.clone());
     if !no_refine {
         refine_report(&mut report, data);
         // A model whose free run diverges through an unstable linearisation: stabilised
         // (stable.rs, issue 26).
         stable::stabilise(&mut report, data);
     }
-    let quality = quality::assess(&report, data);
+    let mut quality = quality::assess(&report, data);
+    // A support missing a term a passive transducer requires (the coupling, the damping):
+    // repaired, refined again and printed if it passes the same gate (issue 26).
+    if !quality.passed()
+        && let Some(streaming) = &streaming
+        && let Some((repaired, q)) = repair(streaming, &report, data)
+    {
+        report = repaired;
+        quality = q;
+    }
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
         // A stabilised model that still fails: what to try (stable.rs).
@@ -742,6 +752,97 @@ pub fn identify_system(
         report.harvester = Some(power::harvester(&report, data, r, args.coil_ohms));
     }
     Ok(Outcome::Passed(Box::new(report)))
+}
+
+/// At most this many terms are added to a support by [`repair`].
+pub const MAX_REPAIRS: usize = 2;
+
+/// A model the gate withheld because the selection dropped a term the physics of a passive
+/// transducer requires ([`quality::dropped_term`]: the coupling missing from x'' while the
+/// circuit's equation depends on the motion, or the beam's damping missing beside the
+/// coupling), repaired: the term is added to the streaming model's support, that equation
+/// refitted by least squares on the standard errors' rows ([`report::refit`]), and the model
+/// refined and stabilised as any other, then put through the same gate ([`quality::assess`]:
+/// held-out prediction, standard errors, the coupling's passivity). Up to [`MAX_REPAIRS`]
+/// terms (a coupling, then its damping). The repaired report and its gate, when it passes,
+/// with a warning per term added; `None` otherwise (the model is withheld as it was).
+/// `lssi gen electromagnetic --wells bistable` was withheld with "x'' has no term in V …
+/// the selection dropped the coupling" (V 661 standard errors from 0 refitted); repaired, it
+/// is the truth's model.
+pub fn repair(
+    streaming: &SystemReport,
+    refined: &SystemReport,
+    data: &SystemData,
+) -> Option<(SystemReport, quality::SystemQuality)> {
+    // x integrated from v: the streaming support carries the integral's unmeasured offset
+    // (a constant and x² beside the truth's x³), which a repaired coupling does not mend
+    // (`scripts/hostile-system.sh` seed 9759: repaired, printed with a spurious 1 and x²).
+    if data.x_from_v.is_some() {
+        return None;
+    }
+    let mut base = streaming.clone();
+    let mut current = refined.clone();
+    let mut added = Vec::new();
+    for _ in 0..MAX_REPAIRS {
+        let sim = simulate::SystemSim::of_report(&current)?;
+        let (m, term, sentence) = quality::dropped_term(&sim, &current, data)?;
+        let name = term.name_in(&sim.electrical, sim.displacements);
+        let eq = base.equations.get_mut(m)?;
+        if eq.terms.iter().any(|t| t.term == name) {
+            return None;
+        }
+        // In the library's order (the sweep's densest solution lists it).
+        let order: Vec<String> = eq
+            .solutions
+            .first()
+            .map(|s| s.terms.clone())
+            .unwrap_or_default();
+        let rank = |n: &str| order.iter().position(|o| o == n).unwrap_or(usize::MAX);
+        let at = eq
+            .terms
+            .iter()
+            .position(|t| rank(&t.term) > rank(&name))
+            .unwrap_or(eq.terms.len());
+        eq.terms.insert(
+            at,
+            identify::TermReport {
+                term: name,
+                coef: 0.0,
+                se: None,
+            },
+        );
+        let terms: Vec<simulate::SimTerm> = eq
+            .terms
+            .iter()
+            .map(|t| simulate::SimTerm::parse(&t.term, &sim.electrical))
+            .collect::<Option<_>>()?;
+        let (beta, se) = report::refit(base.sample_period, data, m, &terms)?;
+        if !beta.iter().all(|b| b.is_finite()) {
+            return None;
+        }
+        for ((t, b), s) in eq.terms.iter_mut().zip(beta).zip(se) {
+            t.coef = b;
+            t.se = s.is_finite().then_some(s);
+        }
+        added.push(sentence);
+        let mut next = base.clone();
+        refine_report(&mut next, data);
+        stable::stabilise(&mut next, data);
+        // Only a support refinement on simulation error took: the least-squares refit the
+        // repair starts from rests on differentiated rows, and its ± are far narrower than
+        // what the record allows for a damping against a coupling (`lssi gen electromagnetic
+        // --seed 44`: refinement not taken, the refit printed V −0.309 ± 0.002, truth −0.25).
+        if next.model != "refined" {
+            return None;
+        }
+        let q = quality::assess(&next, data);
+        if q.passed() {
+            next.warnings.extend(added);
+            return Some((next, q));
+        }
+        current = next;
+    }
+    None
 }
 
 /// `lssi identify FILE` for a recording with an electrical channel: the system's model, as

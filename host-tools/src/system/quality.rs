@@ -1131,3 +1131,91 @@ pub fn refusal(data: &SystemData, quality: &SystemQuality) -> String {
         quality.failures.join("; ")
     )
 }
+
+/// A term the selection dropped that the physics of a passive transducer requires, found on
+/// the printed model `sim`: the coupling (V or i) missing from x'' while an electrical
+/// equation depends on the motion and, refitted with x'''s terms, it is [`MIN_COUPLING_T`] or
+/// more standard errors from 0 ([`coupling_both_ways`]'s "the selection dropped the
+/// coupling"), or the beam's damping v missing beside a coupling while, refitted, v is as far
+/// from 0 ([`damping_beside_coupling`]'s "the selection traded the beam's damping"). The
+/// equation's index, the term, and the sentence saying what was added (see
+/// [`super::repair`]); `None` when neither applies.
+pub fn dropped_term(
+    sim: &SystemSim,
+    report: &SystemReport,
+    data: &SystemData,
+) -> Option<(usize, SimTerm, String)> {
+    if report.equations.iter().any(super::report::is_algebraic) {
+        return None;
+    }
+    let d = sim.displacements;
+    let named = |m: usize| report.equations.get(m).map_or("x''", |e| e.target.as_str());
+    let coupled_anywhere = sim
+        .equations
+        .iter()
+        .take(d)
+        .any(|eq| active_monomials(eq).iter().any(|m| m[2] > 0 || m[3] > 0));
+    if !coupled_anywhere {
+        for (k, eq) in sim.equations.iter().enumerate().skip(d).take(2) {
+            let moved = active_monomials(eq)
+                .iter()
+                .any(|m| (m[0] > 0 || m[1] > 0 || m[4] > 0 || m[5] > 0) && m[2] == 0 && m[3] == 0);
+            if !moved {
+                continue;
+            }
+            let coupling = state_term(2 + k - d);
+            let mut best: Option<(f64, f64, f64, usize)> = None;
+            for m in 0..d {
+                let Some((b, e)) = refit_with(sim, report, data, m, coupling) else {
+                    continue;
+                };
+                let t = b.abs() / e;
+                if t.is_finite() && best.is_none_or(|(bt, ..)| t > bt) {
+                    best = Some((t, b, e, m));
+                }
+            }
+            let (t, b, e, m) = best?;
+            if t < MIN_COUPLING_T {
+                return None;
+            }
+            let name = coupling.name_in(&sim.electrical, d);
+            let target = named(k);
+            return Some((
+                m,
+                coupling,
+                format!(
+                    "the selection dropped the coupling {name} from {} although {target} depends on the motion (refitted with that equation's terms, {name}'s coefficient is {b:.3e} ± {e:.1e}, {t:.0} standard errors from 0): {name} was added and the model refined with it",
+                    named(m)
+                ),
+            ));
+        }
+    }
+    for m in 0..d {
+        let velocity = if m == 0 { 1 } else { 5 };
+        let live = active_monomials(&sim.equations[m]);
+        let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
+        let damped = live
+            .iter()
+            .any(|q| q[velocity] == 1 && q.iter().sum::<u8>() == 1);
+        if !coupled || damped {
+            continue;
+        }
+        let term = state_term(velocity);
+        let (b, e) = refit_with(sim, report, data, m, term)
+            .filter(|(b, e)| b.is_finite() && e.is_finite() && *e > 0.0)?;
+        let t = b.abs() / e;
+        if t < MIN_COUPLING_T {
+            return None;
+        }
+        let v = term.name_in(&sim.electrical, d);
+        return Some((
+            m,
+            term,
+            format!(
+                "the selection traded the beam's damping {v} in {} for the coupling (refitted with {v} added, its coefficient is {b:.3e} ± {e:.1e}, {t:.0} standard errors from 0): {v} was added and the model refined with it",
+                named(m)
+            ),
+        ));
+    }
+    None
+}

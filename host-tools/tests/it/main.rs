@@ -46,6 +46,7 @@ mod system_load;
 mod system_more;
 mod system_omega;
 mod system_power;
+mod system_repair;
 mod system_terms;
 mod system_trust;
 mod system_wrong;
