@@ -355,7 +355,10 @@ fn a_figure_that_cannot_be_written_is_an_error_naming_its_file() {
     let run = lssi(&["plot", &a, "--no-refine", "--out", arg(&below_a_file)]);
     assert_eq!(run.status.code(), Some(1));
     assert!(
-        stderr(&run).contains(&format!("{}: cannot write", below_a_file.display())),
+        stderr(&run).contains(&format!(
+            "{}: cannot create the folder",
+            below_a_file.display()
+        )),
         "{}",
         stderr(&run)
     );
