@@ -155,7 +155,7 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     let plain: serde_json::Value = serde_json::from_slice(&plain.stdout).unwrap();
     let plain = if withheld {
         let reason = plain["reason"].as_str().unwrap();
-        assert!(reason.contains("no term in v, no damping"), "{reason}");
+        assert!(reason.contains("no term odd in v, no damping"), "{reason}");
         assert!(
             v["streaming_terms"]
                 .as_array()
@@ -216,7 +216,7 @@ fn refinement_is_the_default_and_the_streaming_model_is_still_reported() {
     if withheld {
         assert_eq!(text.status.code(), Some(3));
         let stderr = String::from_utf8_lossy(&text.stderr);
-        assert!(stderr.contains("no term in v, no damping"), "{stderr}");
+        assert!(stderr.contains("no term odd in v, no damping"), "{stderr}");
     } else {
         let text = String::from_utf8(text.stdout).unwrap();
         assert!(

@@ -265,7 +265,7 @@ fn harvester_and_paper_recordings_still_pass() {
         // that driven model without damping (issue 25), and refinement brings it back, so
         // the recording passes as `lssi identify` runs by default.
         if out.status.code() == Some(3)
-            && String::from_utf8_lossy(&out.stderr).contains("no term in v, no damping")
+            && String::from_utf8_lossy(&out.stderr).contains("no term odd in v, no damping")
         {
             out = Command::new(LSSI)
                 .arg("identify")
@@ -612,7 +612,7 @@ fn a_driven_model_without_damping_is_withheld() {
         assert!(terms.is_empty(), "{terms:?}");
         assert_withheld(
             &path,
-            "the model is driven but has no term in v, no damping",
+            "the model is driven but has no term odd in v, no damping",
         );
     }
 }

@@ -181,3 +181,50 @@ fn two_terms_for_a_third_of_a_percent_are_not_taken() {
     let names: Vec<String> = terms(&json).into_iter().map(|(n, _)| n).collect();
     assert_eq!(names, ["x", "v", "x^3", "u"], "{json}");
 }
+
+/// A light single well ringing down at its own frequency under a weak forcing, 30 periods at 20
+/// samples a period (12-bit, 1 %): Ω came out at the ringing's 24.8 rad/s (the forcing's is
+/// 31.8) and `−5.65e7 x³ − 9966 x·v² + 0.05 cos(24.8t)` was printed: x·v² counted as damping.
+/// Dissipation is odd in v; the model is withheld as driven and undamped
+/// (`scripts/hostile-more.sh` seed 20500).
+#[test]
+fn a_term_even_in_v_is_not_a_damping() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = gen_eveh(
+        dir.path(),
+        "r.csv",
+        &[
+            "--wells",
+            "monostable",
+            "--mass",
+            "0.00525",
+            "--k1",
+            "2.208",
+            "--k3",
+            "241600",
+            "--zeta",
+            "0.01984",
+            "--omega",
+            "31.83",
+            "--amplitude",
+            "0.8386",
+            "--rate",
+            "103.1",
+            "--t-end",
+            "6.05",
+            "--x0",
+            "0.004662",
+            "--observe",
+            "x",
+            "--delta",
+            "0.01",
+            "--adc-bits",
+            "12",
+            "--full-scale",
+            "0.008847783704878901",
+            "--seed",
+            "20500",
+        ],
+    );
+    assert_withheld(&path, "no term odd in v, no damping");
+}
