@@ -1017,6 +1017,20 @@ pub fn electrical_follows_velocity(
     None
 }
 
+/// The velocity's slot in the simulator's state (x, v, e1, e2, x2, v2) when displacement
+/// `m`'s equation holds a coupling (a term in an electrical state) but no damping: a beam's
+/// damping is viscous, a term in v itself (x²·v, v³ beside it are nonlinear damping; alone
+/// they were the selection's stand-in for a lost −c v). `None` otherwise.
+fn coupled_without_damping(sim: &SystemSim, m: usize) -> Option<usize> {
+    let velocity = if m == 0 { 1 } else { 5 };
+    let live = active_monomials(&sim.equations[m]);
+    let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
+    let damped = live
+        .iter()
+        .any(|q| q[velocity] == 1 && q.iter().sum::<u8>() == 1);
+    (coupled && !damped).then_some(velocity)
+}
+
 /// See [`assess`]: a displacement's equation holding the coupling (V or i) but no linear term
 /// in its own velocity. Every harvester's beam loses energy to its own damping beside what the
 /// transducer takes, and under a single forcing tone in steady state the electrical state is
@@ -1035,21 +1049,12 @@ pub fn damping_beside_coupling(
 ) -> Option<String> {
     let d = sim.displacements;
     for m in 0..d {
-        // The velocity's slot in the simulator's state (x, v, e1, e2, x2, v2).
-        let velocity = if m == 0 { 1 } else { 5 };
-        let live = active_monomials(&sim.equations[m]);
-        let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
-        // A beam's damping is viscous: a term in v itself (x²·v, v³ beside it are nonlinear
-        // damping; alone they were the selection's stand-in for a lost −c v).
-        let damped = live
-            .iter()
-            .any(|q| q[velocity] == 1 && q.iter().sum::<u8>() == 1);
-        if !coupled || damped {
+        let Some(velocity) = coupled_without_damping(sim, m) else {
             continue;
-        }
+        };
         let v = state_term(velocity).name_in(&sim.electrical, d);
         let target = report.equations.get(m).map_or("x''", |e| e.target.as_str());
-        let coupling: Vec<String> = live
+        let coupling: Vec<String> = active_monomials(&sim.equations[m])
             .iter()
             .filter(|q| q[2] > 0 || q[3] > 0)
             .map(|q| {
@@ -1191,15 +1196,9 @@ pub fn dropped_term(
         }
     }
     for m in 0..d {
-        let velocity = if m == 0 { 1 } else { 5 };
-        let live = active_monomials(&sim.equations[m]);
-        let coupled = live.iter().any(|q| q[2] > 0 || q[3] > 0);
-        let damped = live
-            .iter()
-            .any(|q| q[velocity] == 1 && q.iter().sum::<u8>() == 1);
-        if !coupled || damped {
+        let Some(velocity) = coupled_without_damping(sim, m) else {
             continue;
-        }
+        };
         let term = state_term(velocity);
         let (b, e) = refit_with(sim, report, data, m, term)
             .filter(|(b, e)| b.is_finite() && e.is_finite() && *e > 0.0)?;
