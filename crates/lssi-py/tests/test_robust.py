@@ -372,3 +372,26 @@ def test_a_path_is_read_as_bytes_or_pathlike_and_none_is_a_type_error(tmp_path):
         with pytest.raises(TypeError) as e:
             call(None)
         assert "path must be a file path" in str(e.value)
+
+
+def test_a_frame_indexed_by_time_gives_its_times():
+    """Issue 25: a DataFrame whose times are its index (a DatetimeIndex, as read_csv(...,
+    index_col=0, parse_dates=True) makes, a TimedeltaIndex, or an index named t) fits as the
+    same recording with a column t; a plain index is not taken for times."""
+    pd = pytest.importorskip("pandas")
+    t, x = duffing(n=8000, dt=0.01)
+    reference = lssi.Model(refine=False).fit(pd.DataFrame({"t": t, "x": x})).coefficients()
+    stamps = pd.Timestamp("2026-11-27 05:00") + pd.to_timedelta(t, unit="s")
+    frames = [
+        pd.DataFrame({"x": x}, index=pd.DatetimeIndex(stamps)),
+        pd.DataFrame({"x": x}, index=pd.DatetimeIndex(stamps).tz_localize("Europe/Paris")),
+        pd.DataFrame({"x": x}, index=pd.to_timedelta(t, unit="s")),
+        pd.DataFrame({"t": t, "x": x}).set_index("t"),
+    ]
+    for frame in frames:
+        got = lssi.Model(refine=False).fit(frame).coefficients()
+        assert got.keys() == reference.keys()
+        for name, value in reference.items():
+            assert got[name] == pytest.approx(value, rel=1e-6, abs=1e-9), name
+    with pytest.raises(ValueError, match="give the sample times t"):
+        lssi.Model().fit(pd.DataFrame({"x": x}))

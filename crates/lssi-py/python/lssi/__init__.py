@@ -220,6 +220,24 @@ def _is_frame(x) -> bool:
     return hasattr(x, "columns") and hasattr(x, "__getitem__")
 
 
+def _index_times(frame):
+    """A DataFrame's index as its times when it has no column t: an index named t (seconds, as
+    after ``set_index("t")``), or one of dates and times or of durations (``DatetimeIndex``,
+    ``TimedeltaIndex``, as ``read_csv(..., index_col=0, parse_dates=True)`` makes); else None."""
+    index = getattr(frame, "index", None)
+    if index is None or not hasattr(index, "dtype"):
+        return None
+    if getattr(index, "name", None) == "t" or getattr(index.dtype, "kind", None) in ("M", "m"):
+        return index
+    try:
+        import pandas as pd
+    except ImportError:  # pragma: no cover - a frame with an index is pandas'
+        return None
+    if pd.api.types.is_datetime64_any_dtype(index.dtype):  # a DatetimeIndex with a time zone
+        return index
+    return None
+
+
 def _frame(frame, t, v, u, electrical: Optional[Dict[str, Any]] = None):
     """A DataFrame's columns t, x, v, u (and V, i into ``electrical`` when given) where the
     arguments do not give them."""
@@ -236,6 +254,8 @@ def _frame(frame, t, v, u, electrical: Optional[Dict[str, Any]] = None):
         raise ValueError(f"the DataFrame has no column 'x' (it has {columns}).")
     if t is None and "t" in columns:
         t = frame["t"]
+    elif t is None:
+        t = _index_times(frame)
     if v is None and "v" in columns:
         v = frame["v"].to_numpy()
     if u is None and "u" in columns:
@@ -400,7 +420,9 @@ class Model:
         """Identifies the equation from displacement ``x`` (and a measured velocity ``v``,
         excitation ``u`` when there are), sampled at times ``t`` (seconds, or dates and
         times: then seconds from the first sample) or every ``dt`` seconds. ``x`` may be a
-        pandas DataFrame with columns t, x and optionally v, u (and V, i).
+        pandas DataFrame with columns t, x and optionally v, u (and V, i); without a column
+        t, its index gives the times when it is one of dates and times (a ``DatetimeIndex``),
+        of durations, or is named t.
 
         With an electrical channel, ``V`` (the voltage across the load) or ``i`` (the
         current), the model is the harvester's system, as ``lssi identify`` finds it for a
