@@ -178,11 +178,17 @@ fn explains(
 
 /// The bursts of one channel (see the module docs), among samples that `scan` keeps so far.
 pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
+    match Limit::of(&centred(s, scan), quantum(s) * centred_gain()) {
+        Some(limit) => bursts_within(s, scan, &limit),
+        None => Vec::new(),
+    }
+}
+
+/// The bursts of one channel against a given limit of its centred residuals (a streamed
+/// file's: the excerpt's, [`crate::identify::blemish::spike_limit`]).
+pub(crate) fn bursts_within(s: &[f64], scan: &Scan, limit: &Limit) -> Vec<Burst> {
     let n = s.len();
     let r = centred(s, scan);
-    let Some(limit) = Limit::of(&r, quantum(s) * centred_gain()) else {
-        return Vec::new();
-    };
     let candidates: Vec<usize> = (0..n)
         .filter(|&i| r[i].is_some_and(|v| limit.size(v) > limit.limit))
         .collect();
@@ -213,7 +219,7 @@ pub fn bursts(s: &[f64], scan: &Scan) -> Vec<Burst> {
                 if b > last {
                     break;
                 }
-                if let Some((fill, worst)) = explains(s, scan, &limit, &c, a, b)
+                if let Some((fill, worst)) = explains(s, scan, limit, &c, a, b)
                     && found.as_ref().is_none_or(|f| worst < f.2)
                 {
                     found = Some((a, fill, worst));

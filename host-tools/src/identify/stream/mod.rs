@@ -35,8 +35,9 @@
 //!
 //! Blemishes as in memory ([`crate::identify::blemish`]): the excerpt is scanned as a small
 //! file is (NaN, time gaps and spikes left out or repaired, each named); the rest goes through
-//! the spike rule on a sliding run of seven samples with the excerpt's thresholds (a spike is
-//! repaired by the cubic through its neighbours and named), and the identifier itself leaves
+//! the burst rule block by block ([`bursts`]: 4,096 rows with 64 of context each side) and the
+//! spike rule on a sliding run of seven samples, both with the excerpt's thresholds (a burst or
+//! a spike is repaired by the cubic through its neighbours and named), and the identifier itself leaves
 //! out non-finite samples and restarts on time gaps. The configuration and the Ω probes take
 //! repaired values and clean windows only; the gate's blocks are the rows as read (the gate
 //! finds their blemishes itself, as in memory).
@@ -50,6 +51,7 @@
 //! file is not refined on simulation error (the default for one file in memory): the output says
 //! so (a warning naming the file), and `--refine` reads it whole.
 
+mod bursts;
 mod gate;
 mod probe;
 mod reader;

@@ -1,8 +1,10 @@
 //! Running: the identifier over the excerpt, then over the rest of the stream chunk by
-//! chunk, with the spike rule applied on a sliding run of seven samples.
+//! chunk, searched for bursts block by block ([`super::bursts`]) and then for spikes on a
+//! sliding run of seven samples.
 
 use lssi_core::{Config, Identifier, Real};
 
+use super::bursts::{BurstRepair, MARGIN};
 use super::sketch::{Block, Sketch};
 use super::{CsvStream, NAMED_REJECTIONS, StreamError};
 use crate::identify::blemish::Feed;
@@ -107,19 +109,27 @@ pub(super) fn run(
         .take(NAMED_REJECTIONS)
         .map(|b| format!("{file}: {}", b.sentence()))
         .collect();
+    // The excerpt's last rows as given to the identifier: the burst stage's first context.
+    let mut context: std::collections::VecDeque<(usize, Sample)> =
+        std::collections::VecDeque::with_capacity(MARGIN + 1);
     for (i, s) in excerpt.samples().enumerate() {
-        match scan.feed(i) {
-            Feed::Skip => {}
-            Feed::AsIs => push(i, s),
-            Feed::Repaired(r) => push(
-                i,
-                Sample {
-                    x: r.x,
-                    v: r.v,
-                    u: r.u,
-                    ..s
-                },
-            ),
+        let given = match scan.feed(i) {
+            Feed::Skip => None,
+            Feed::AsIs => Some(s),
+            Feed::Repaired(r) => Some(Sample {
+                x: r.x,
+                v: r.v,
+                u: r.u,
+                ..s
+            }),
+        };
+        if let Some(given) = given {
+            push(i, given);
+        }
+        // A row left out is context the burst search skips (x non-finite).
+        context.push_back((i, given.unwrap_or(Sample { x: f64::NAN, ..s })));
+        if context.len() > MARGIN {
+            context.pop_front();
         }
     }
     // The rest: the spike rule with the excerpt's thresholds, on a sliding run of seven
@@ -136,32 +146,60 @@ pub(super) fn run(
         .map(|c| crate::identify::blemish::spike_limit(c, &scan))
         .collect();
     drop(channels);
+    // Bursts in x and a measured v, before the spikes (as in memory).
+    let searched = 1 + usize::from(excerpt.v.is_some());
+    let mut bursts = BurstRepair::new(
+        limits[..searched].to_vec(),
+        names[..searched].to_vec(),
+        scan.dt,
+        context.into_iter().collect(),
+    );
     let mut spikes = SpikeRepair::new(limits, names, scan.dt);
     // The gate's blocks: the excerpt is the first; the rows as read (the gate finds their
     // blemishes itself, as in memory).
     let mut sketch = Sketch::new(&excerpt, excerpt.len(), gate_blocks);
     let mut i = excerpt.len();
     drop(excerpt);
+    let mut named_bursts = 0;
+    // The rows the burst stage gave out, through the spike stage to the identifiers.
+    let mut drain = |bursts: &mut BurstRepair,
+                     spikes: &mut SpikeRepair,
+                     notes: &mut Vec<String>,
+                     blemished: &mut u64| {
+        for b in &bursts.found[named_bursts..] {
+            *blemished += b.rows as u64;
+            if notes.len() < NAMED_REJECTIONS {
+                notes.push(format!("{file}: {}", b.sentence()));
+            }
+        }
+        named_bursts = bursts.found.len();
+        while let Some((k, s)) = bursts.next() {
+            if let Some((j, out, spike)) = spikes.push(k, s) {
+                if let Some((value, channel)) = spike {
+                    *blemished += 1;
+                    if notes.len() < NAMED_REJECTIONS {
+                        notes.push(format!(
+                            "{file}: data row {} (t = {}): an isolated spike in {channel} ({value:e}); it was replaced by the cubic through its four neighbours",
+                            j + 1,
+                            out.t
+                        ));
+                    }
+                }
+                push(j, out);
+            }
+        }
+    };
     while let Some(s) = csv.next_sample()? {
         sketch.push(s);
-        if let Some((j, out, spike)) = spikes.push(i, s) {
-            if let Some((value, channel)) = spike {
-                blemished += 1;
-                if notes.len() < NAMED_REJECTIONS {
-                    notes.push(format!(
-                        "{file}: data row {} (t = {}): an isolated spike in {channel} ({value:e}); it was replaced by the cubic through its four neighbours",
-                        j + 1,
-                        out.t
-                    ));
-                }
-            }
-            push(j, out);
-        }
+        bursts.push(i, s);
+        drain(&mut bursts, &mut spikes, &mut notes, &mut blemished);
         i += 1;
         if i.is_multiple_of(1 << 16) {
             progress(csv.bytes_read(), csv.size());
         }
     }
+    bursts.finish();
+    drain(&mut bursts, &mut spikes, &mut notes, &mut blemished);
     for (j, out) in spikes.finish() {
         push(j, out);
     }
