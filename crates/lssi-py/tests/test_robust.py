@@ -372,6 +372,12 @@ def test_a_path_is_read_as_bytes_or_pathlike_and_none_is_a_type_error(tmp_path):
         with pytest.raises(TypeError) as e:
             call(None)
         assert "path must be a file path" in str(e.value)
+        # A DataFrame is named in a sentence, not printed whole, and Model().fit named.
+        with pytest.raises(TypeError) as e:
+            call(pd.DataFrame({"t": np.arange(300.0), "x": np.zeros(300)}))
+        message = str(e.value)
+        assert "not a DataFrame" in message and "lssi.Model().fit" in message, message
+        assert "\n" not in message, message
 
 
 def test_a_frame_indexed_by_time_gives_its_times():

@@ -982,8 +982,17 @@ def _path(path) -> str:
     try:
         return os.fsdecode(os.fspath(path))
     except TypeError:
+        if _is_frame(path) or isinstance(path, (dict, np.ndarray, list, tuple)):
+            kind = "a DataFrame" if _is_frame(path) else f"a {type(path).__name__}"
+            raise TypeError(
+                f"path must be a file path (str, bytes or os.PathLike), not {kind}: fit "
+                "columns in memory with lssi.Model().fit(...)."
+            ) from None
+        shown = repr(path)
+        if len(shown) > 60:
+            shown = f"a {type(path).__name__}"
         raise TypeError(
-            f"path must be a file path (str, bytes or os.PathLike), not {path!r}."
+            f"path must be a file path (str, bytes or os.PathLike), not {shown}."
         ) from None
 
 
