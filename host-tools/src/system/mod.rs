@@ -885,10 +885,6 @@ pub fn identify_command(
 /// Refines the report's model on simulation error ([`refine::refine_and_check`]) and says
 /// what was done.
 pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
-    if data.second.is_some() {
-        report.note = "not refined: refinement on simulation error covers one displacement, and this system has two; this is the streaming system identifier's model".into();
-        return;
-    }
     let Some(sim) = simulate::SystemSim::of_report(report) else {
         report.note = "not refined: the model has a term the simulator does not know; this is the streaming system identifier's model".into();
         return;
@@ -906,17 +902,19 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
             }
             widen_by_half(report, &info.first_half);
             report.note = format!(
-                "refined on simulation error (x{} and {} together, every equation's coefficients): refined on the first half, it predicts the second half with an NRMSE of {:.2} % against the streaming model's {:.2} % (segments of {} periods from fitted initial states, the excitation alone)",
-                if data.recording.v.is_some() {
-                    ", v"
-                } else {
-                    ""
+                "refined on simulation error ({} together, every equation's coefficients): refined on the first half, it predicts the second half with an NRMSE of {:.2} % against the streaming model's {:.2} % (segments of {} periods from fitted initial states, the excitation alone)",
+                {
+                    let names: Vec<String> = quality::recorded_states(data)
+                        .into_iter()
+                        .map(|(_, name, _)| name)
+                        .collect();
+                    match names.split_last() {
+                        Some((last, rest)) if !rest.is_empty() => {
+                            format!("{} and {last}", rest.join(", "))
+                        }
+                        _ => names.join(""),
+                    }
                 },
-                data.electrical
-                    .iter()
-                    .map(|e| e.kind.symbol())
-                    .collect::<Vec<_>>()
-                    .join(", "),
                 info.held_out_refined_percent,
                 info.held_out_streaming_percent,
                 info.held_out_periods

@@ -114,8 +114,9 @@ struct Problem<'a> {
     slots: Vec<Slot>,
     /// (state index, values, weight) of each recorded state.
     observed: Vec<(usize, &'a [f64], f64)>,
-    /// The states simulated (2 + the electrical ones).
-    dim: usize,
+    /// The states simulated, as indices into [`State`]: x, v, the electrical ones and, with
+    /// two displacements, x2 and v2.
+    free: Vec<usize>,
     /// Each state's scale (its finite-difference step's).
     scale: State,
     bound: f64,
@@ -150,12 +151,21 @@ impl<'a> Problem<'a> {
             scale[j] = d;
             observed.push((j, s, 1.0 / d));
         }
-        if scale[1] == 0.0 {
-            // v not recorded: its scale from x's over the dominant period.
-            let period = crate::identify::refine::mean_period_samples(&data.recording.x[from..to])
-                .unwrap_or(64.0);
-            let dt = (data.recording.t[to - 1] - data.recording.t[from]) / (to - from - 1) as f64;
-            scale[1] = scale[0] * std::f64::consts::TAU / (period * dt);
+        let dt = (data.recording.t[to - 1] - data.recording.t[from]) / (to - from - 1) as f64;
+        let mut free: Vec<usize> = (0..2 + base.electrical.len()).collect();
+        let mut displacements = vec![(0, data.recording.x.as_slice())];
+        if let Some(second) = &data.second {
+            free.extend([4, 5]);
+            displacements.push((4, second.x.as_slice()));
+        }
+        for (j, x) in displacements {
+            if scale[j + 1] == 0.0 {
+                // A velocity not recorded: its scale from its displacement's over the
+                // dominant period.
+                let period =
+                    crate::identify::refine::mean_period_samples(&x[from..to]).unwrap_or(64.0);
+                scale[j + 1] = scale[j] * std::f64::consts::TAU / (period * dt);
+            }
         }
         let bound = 10.0 * scale.iter().copied().fold(0.0, f64::max);
         Some(Self {
@@ -163,7 +173,7 @@ impl<'a> Problem<'a> {
             base: base.clone(),
             slots,
             observed,
-            dim: 2 + base.electrical.len(),
+            free,
             scale,
             bound,
         })
@@ -237,14 +247,14 @@ fn blocks(
             jc[(i, k)] = (r[i] - r0[i]) / h;
         }
     }
-    let mut js = DMatrix::<f64>::zeros(m, p.dim);
-    for k in 0..p.dim {
+    let mut js = DMatrix::<f64>::zeros(m, p.free.len());
+    for (col, &k) in p.free.iter().enumerate() {
         let h = 1e-6 * p.scale[k].max(1e-30);
         let mut s = *start;
         s[k] += h;
         let r = p.residuals(&sim, seg, &s)?;
         for i in 0..m {
-            js[(i, k)] = (r[i] - r0[i]) / h;
+            js[(i, col)] = (r[i] - r0[i]) / h;
         }
     }
     let r = DVector::from_vec(r0);
@@ -310,7 +320,6 @@ fn fit(
     let mut mu = 1e-3;
     let mut done = 0;
     let np = if states_only { 0 } else { c.len() };
-    let d = p.dim;
     let mut schur = None;
     let mut samples = 0;
     for _ in 0..iterations {
@@ -378,8 +387,8 @@ fn fit(
                         vi * &b.gs
                     };
                     let mut n = *s;
-                    for k in 0..d {
-                        n[k] -= ds[k];
+                    for (col, &k) in p.free.iter().enumerate() {
+                        n[k] -= ds[col];
                     }
                     n
                 })
@@ -506,7 +515,7 @@ pub fn refine(
         _ => one,
     };
     let refined = p.sim(&best.c);
-    let free = best.samples as f64 - (best.c.len() + best.starts.len() * p.dim) as f64;
+    let free = best.samples as f64 - (best.c.len() + best.starts.len() * p.free.len()) as f64;
     let sigma2 = best.cost / free.max(1.0);
     let variances: Vec<f64> = match best.schur.as_ref().and_then(|s| s.clone().try_inverse()) {
         Some(inv) => (0..best.c.len()).map(|k| sigma2 * inv[(k, k)]).collect(),
@@ -621,10 +630,11 @@ pub fn refine_and_check(
         .enumerate()
         .map(|(k, eq)| {
             (
-                if k == 0 {
-                    "x''".to_owned()
-                } else {
-                    format!("{}'", sim.electrical[k - 1].symbol())
+                match (sim.displacements, k) {
+                    (1, 0) => "x''".to_owned(),
+                    (_, 0) => "x1''".to_owned(),
+                    (_, 1) => "x2''".to_owned(),
+                    (d, k) => format!("{}'", sim.electrical[k - d].symbol()),
                 },
                 eq.iter()
                     .map(|(t, c)| (t.name(&sim.electrical), *c))
