@@ -787,7 +787,7 @@ pub fn undetermined_terms(sim: &SystemSim, report: &SystemReport) -> Option<Stri
         "the recording does not determine the terms {} (each within {MIN_DETERMINED_T:.0} standard errors of 0: the record does not fix even its sign){}",
         found.join("; "),
         if split {
-            ": under a single forcing tone the electrical state moves nearly as a lagged copy of the velocity, so the beam's damping and the coupling trade against each other and only their combined effect is determined; a transient, a sweep or a broadband excitation separates them"
+            ": the electrical state follows the velocity closely (its equation filters it; under a single forcing tone it is nearly a lagged copy), so the beam's damping and the coupling trade against each other and the record determines mainly their combined effect; a transient, a sweep, a broader excitation or less noise separates them"
         } else {
             ""
         }
