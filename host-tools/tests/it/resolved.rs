@@ -228,3 +228,119 @@ fn a_term_even_in_v_is_not_a_damping() {
     );
     assert_withheld(&path, "no term odd in v, no damping");
 }
+
+/// A monostable harvester driven through a measured u, 5 % noise, 12 bits, 9.3 forcing
+/// periods (2,089 samples): the streaming support had v and v³, refined together at 0.2 and
+/// 0.3 standard errors; backward elimination dropped v, and v³ was printed in place of the
+/// truth's v (`scripts/hostile-more.sh` seed 20179). Which of the two damps the record cannot
+/// tell.
+#[test]
+fn a_cubic_damping_kept_where_v_was_dropped_beside_it_withholds_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = gen_eveh(
+        dir.path(),
+        "e.csv",
+        &[
+            "--wells",
+            "monostable",
+            "--mass",
+            "0.01873",
+            "--k1",
+            "185.5",
+            "--k3",
+            "3.205e8",
+            "--zeta",
+            "0.006638",
+            "--omega",
+            "42.91",
+            "--amplitude",
+            "44.74",
+            "--rate",
+            "1529",
+            "--t-end",
+            "1.366",
+            "--x0",
+            "0.001418",
+            "--observe",
+            "x",
+            "--delta",
+            "0.05",
+            "--adc-bits",
+            "12",
+            "--full-scale",
+            "0.003642633386536894",
+            "--input",
+            "--seed",
+            "20179",
+        ],
+    );
+    assert_withheld(&path, "cannot tell the model's damping from a linear one");
+}
+
+/// A lightly damped bistable harvester (ζ 0.0026) driven through a measured u, x and v
+/// recorded at 1 % noise and 10 bits, 47 samples a forcing period: the noise on u drives the
+/// simulation the refinement fits, and moved the damping 3 times as far as a ± from x's
+/// residual alone allowed; the streaming model was kept, its damping 25 % off the truth at
+/// ± 3.3 % (`scripts/hostile-more.sh` seed 20108). Printed now, every coefficient lies within
+/// two of its ± of the truth.
+#[test]
+fn noise_on_the_excitation_is_in_the_standard_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = gen_eveh(
+        dir.path(),
+        "f.csv",
+        &[
+            "--wells",
+            "bistable",
+            "--mass",
+            "0.03751",
+            "--k1",
+            "24.41",
+            "--k3",
+            "7.755e6",
+            "--zeta",
+            "0.00257",
+            "--omega",
+            "78.34",
+            "--amplitude",
+            "3.229",
+            "--rate",
+            "582.8",
+            "--t-end",
+            "6.784",
+            "--x0",
+            "0.0009982",
+            "--observe",
+            "xv",
+            "--delta",
+            "0.01",
+            "--adc-bits",
+            "10",
+            "--full-scale",
+            "0.009584824880842472",
+            "--input",
+            "--seed",
+            "20108",
+        ],
+    );
+    let (code, out) = identify_json(&path, &[]);
+    if code == 3 {
+        return; // withheld is no wrong model
+    }
+    assert_eq!(code, 0, "{out:?}");
+    let model = out.unwrap();
+    let truth = crate::common::truth(&path);
+    let want: std::collections::HashMap<String, f64> = terms(&truth).into_iter().collect();
+    let got = model["terms"].as_array().unwrap();
+    assert_eq!(got.len(), want.len(), "{model}");
+    for t in got {
+        let name = t["term"].as_str().unwrap();
+        let coef = t["coef"].as_f64().unwrap();
+        let se = t["se"].as_f64().unwrap_or(0.0);
+        let w = *want.get(name).unwrap_or(&0.0);
+        assert!(
+            (coef - w).abs() <= 2.0 * se,
+            "{name}: {coef} ± {se}, truth {w}"
+        );
+    }
+}

@@ -29,7 +29,7 @@
 //!   streaming selection loses the harvester's damping on some seeds, and this brings it
 //!   back (`examples/refine_noise.rs`) without letting a spurious term in.
 //! - **Standard errors** of the coefficients of the pass reported, from the Jacobian J
-//!   recomputed at its optimum: seⱼ² = σ² [(JᵀJ)⁻¹]ⱼⱼ + Δcⱼ², where
+//!   recomputed at its optimum: seⱼ² = σ² [(JᵀJ)⁻¹]ⱼⱼ + Δcⱼ² + Vᵤⱼ, where
 //!   - JᵀJ is the normal matrix of *all* the parameters estimated: the coefficients, every
 //!     segment's initial state and, when the model has a sin/cos term, the excitation
 //!     frequency Ω; [(JᵀJ)⁻¹]ⱼⱼ is the marginal variance (the coefficients' own block alone
@@ -46,6 +46,15 @@
 //!     for 61 of 80 coefficients, 10 seeds of each well); with Δc, for 80 of 80, the standard
 //!     errors' RMS within 25 % of the errors' (`tests/standard_errors.rs`,
 //!     `examples/refine_noise.rs`).
+//!
+//!   - Vᵤ, with a measured u, is the variance u's own noise puts on the coefficients: the
+//!     simulation is driven by u as if it were exact, and the response to u's noise
+//!     (narrow-band at the resonance) barely shows in the residual while it moves the
+//!     damping and the stiffness; the mean square of the coefficients' shift (one
+//!     Gauss–Newton step, the states refitted) when u gets noise of its own white floor's
+//!     level once more, over eight draws (`errors::input_noise_shift`; issue 25, hostile
+//!     seeds 20108 and 20153: 1 % and 5 % noise on u, the damping and the stiffness 3–6 of
+//!     the former standard errors off).
 //!
 //!   A sandwich (Newey–West) estimate on the per-sample contributions, at any bandwidth up to
 //!   1000 samples, agrees with σ²(JᵀJ)⁻¹ within 20 % there: the residual is white (|ρₖ| under
