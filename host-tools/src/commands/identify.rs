@@ -244,9 +244,10 @@ pub fn run(args: &IdentifyArgs) -> Result<(), CliError> {
     {
         let note = (!args.no_refine).then(|| {
             format!(
-                "{}: not refined: the file is over {} MiB and was read in chunks; this is the streaming identifier's model (--refine reads it whole and refines)",
+                "{}: not refined: the file is over {} MiB and {} rows and was read in chunks; this is the streaming identifier's model (--refine reads it whole and refines)",
                 args.file.display(),
-                identify::stream::STREAM_BYTES >> 20
+                identify::stream::STREAM_BYTES >> 20,
+                identify::stream::STREAM_ROWS
             )
         });
         return identify::stream::identify_command(

@@ -486,7 +486,11 @@ impl SystemSim {
         let mut s = start;
         let limit = 1e6 * (start.iter().fold(0.0f64, |m, q| m.max(q.abs())) + bound);
         // u[i], the last sample beyond the end (0 without an input).
-        let at = |i: usize| u.get(i.min(u.len().saturating_sub(1))).copied().unwrap_or(0.0);
+        let at = |i: usize| {
+            u.get(i.min(u.len().saturating_sub(1)))
+                .copied()
+                .unwrap_or(0.0)
+        };
         let mut dead = false;
         let mut trig = Trig::new();
         for i in 0..t.len() {

@@ -410,3 +410,43 @@ fn a_streamed_file_has_its_bursts_repaired_and_named() {
         assert!(e <= 0.02, "{}: {:.3} % off", got.term, 100.0 * e);
     }
 }
+
+/// Issue 25 (fresh hostile seed 20635): what decides streaming is a file's rows, not its
+/// bytes: 200,000 rows of t, x, v, u with long numbers (over 8 MiB) are read whole, so refined
+/// with ±; 500,000 short rows over 8 MiB are streamed.
+#[test]
+fn a_file_is_streamed_for_its_rows_not_its_bytes() {
+    use lssi_host::identify::stream::{STREAM_BYTES, STREAM_ROWS, is_large};
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, rows: u64, row: &dyn Fn(u64) -> String| {
+        let path = dir.path().join(name);
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        writeln!(f, "t,x,v,u").unwrap();
+        for i in 0..rows {
+            writeln!(f, "{}", row(i)).unwrap();
+        }
+        drop(f);
+        path
+    };
+    let wide = write("wide.csv", 200_000, &|i| {
+        let t = i as f64 * 7.63e-4;
+        format!(
+            "{t:?},{:?},{:?},{:?}",
+            2.0508 + 1e-3 * (19.79 * t).sin(),
+            1.979e-2 * (19.79 * t).cos(),
+            (19.79 * t).cos() / 3.0
+        )
+    });
+    assert!(std::fs::metadata(&wide).unwrap().len() > STREAM_BYTES);
+    assert!(!is_large(&wide), "200,000 rows are read whole");
+    let long = write("long.csv", STREAM_ROWS + 100_000, &|i| {
+        format!("{:.5},0.00{},0,0", i as f64 * 1e-5, i % 997)
+    });
+    assert!(std::fs::metadata(&long).unwrap().len() > STREAM_BYTES);
+    assert!(
+        is_large(&long),
+        "{} rows are streamed",
+        STREAM_ROWS + 100_000
+    );
+}

@@ -7,7 +7,7 @@
 use std::io::Write;
 use std::process::Command;
 
-use lssi_host::identify::stream::STREAM_BYTES;
+use lssi_host::identify::stream::{STREAM_BYTES, STREAM_ROWS};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -22,7 +22,9 @@ fn a_withheld_streamed_model_has_no_top_level_terms() {
     writeln!(file, "t,x").unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(61);
     let mut i = 0u64;
-    while std::fs::metadata(&path).map_or(0, |m| m.len()) <= STREAM_BYTES + (1 << 20) {
+    while std::fs::metadata(&path).map_or(0, |m| m.len()) <= STREAM_BYTES + (1 << 20)
+        || i <= STREAM_ROWS + 50_000
+    {
         for _ in 0..10_000 {
             let x: f64 = StandardNormal.sample(&mut rng);
             writeln!(file, "{:?},{:?}", i as f64 / 50_000.0, 1e-3 * x).unwrap();
