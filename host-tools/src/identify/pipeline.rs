@@ -111,7 +111,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             contradicted = quality::prediction_misses(recording, &check)
                 .or_else(|| quality::unresolved_damping(&check))
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))
-                .or_else(|| crate::identify::periodic::misses_periodic(recording, &check));
+                .or_else(|| crate::identify::periodic::misses_periodic(recording, &check))
+                .or_else(|| crate::identify::orbit::orbit_not_followed(recording, &check));
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {
