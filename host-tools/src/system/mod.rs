@@ -742,12 +742,39 @@ pub fn identify_system(
     // A coupling in x'' that takes out of the beam far more than the excitation puts in
     // (the mechanical energy balance, quality::coupling_beyond_input): not the transducer's
     // reaction; x'' without it, the electrical equations kept (one-way coupling).
+    // A two-way model that passes the gate (it follows the held-out half) is kept, the
+    // balance's sentence beside it: BistableX's intrawell records, whose two-way models
+    // predict the voltage within 0.9-1.2 % NRMSE, fail the balance too, and their one-way
+    // single equations (no stiffness term selected) diverge.
     if let Some(sim) = simulate::SystemSim::of_report(&report)
         && let Some(sentence) = quality::coupling_beyond_input(&sim, data)
     {
-        let (one_way, q) = one_way(data, options, no_refine, &report, sentence)?;
-        report = one_way;
-        quality = q;
+        if quality.passed() {
+            report.warnings.push(format!(
+                "{}; the model is printed as identified because it follows the record's second half",
+                sentence.replace(", and x'' is the single equation of the mechanical channels without it (one-way coupling: the electrical equation is still driven by the motion)", "")
+            ));
+        } else {
+            let (one_way, q) = one_way(data, options, no_refine, &report, sentence.clone())?;
+            // Taken only when it is a beam's: a damping (v's coefficient negative) and a
+            // bounded free run. BistableX's intrawell records fail the balance too, and their
+            // one-way x'' (0.45 + 10.6 v − 1200 x·v …: no stiffness, a negative damping)
+            // diverges where the two-way model predicts the voltage within 0.9-1.2 %.
+            let damped = one_way
+                .equations
+                .first()
+                .and_then(|e| e.terms.iter().find(|t| t.term == "v"))
+                .is_some_and(|t| t.coef < 0.0);
+            if damped && q.stable != Some(false) {
+                report = one_way;
+                quality = q;
+            } else {
+                report.warnings.push(format!(
+                    "{}; x'' is printed with its coupling because the single equation of the mechanical channels is no beam's either (no damping, or a diverging free run)",
+                    sentence.replace(", and x'' is the single equation of the mechanical channels without it (one-way coupling: the electrical equation is still driven by the motion)", "")
+                ));
+            }
+        }
     }
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
@@ -865,6 +892,15 @@ fn one_way(
     report.warnings.extend(damping_added);
     report.warnings.extend(warnings);
     let mut q = quality::assess(&report, data);
+    // Withheld whatever its gate says: the record does not determine the transducer's
+    // reaction in x'' (the two-way fit failed the balance), and a one-way x'' that follows a
+    // single-tone record stands for a harvester whose coupling is real (`scripts/hostile-
+    // system.sh` seeds 10315, 10323: one-way models passed, the truth's −0.25 V, −250 i
+    // absorbed into the damping). It is the model to simulate (`--json`'s "withheld_model").
+    q.failures.push(format!(
+        "{}; the harvester's two-way coupling is not determined by this record",
+        report.one_way.as_deref().unwrap_or_default()
+    ));
     if let Some(why) = withheld {
         q.failures.push(format!(
             "x'' (the single equation of the mechanical channels) is withheld by its own gate: {}",
