@@ -750,10 +750,13 @@ pub fn simulate_command(
             }
             let n = powers.len() as f64;
             let mean = powers.iter().sum::<f64>() / n;
-            let sd = (powers.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+            let sd = (powers.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0))
+                .sqrt();
             let (lo, hi) = powers
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &p| {
+                    (a.min(p), b.max(p))
+                });
             text.push_str(&format!(
                 "  mean power over {} free runs (the first row's state and {} starts {:.0} % of x's and v's RMS away): {mean:.4e} W, sd {sd:.2e} W ({lo:.4e} to {hi:.4e} W), recorded {p_rec:.4e} W ({:+.1} %)\n",
                 powers.len(),
