@@ -277,6 +277,7 @@ fn of_single(
             nrmse_percent: 100.0 * found.iter().map(|p| p.nrmse).fold(0.0, f64::max),
             damping: damping_sentence(&names),
         }),
+        one_way: None,
         warnings,
         rejections: single.rejections.clone(),
     }
@@ -284,7 +285,7 @@ fn of_single(
 
 /// Fills in the standard errors of x'''s `terms` from a least-squares fit on the system's
 /// regression rows ([`super::report::refit`]); false when there is none.
-fn least_squares_se(terms: &mut [TermReport], data: &SystemData, dt: f64) -> bool {
+pub fn least_squares_se(terms: &mut [TermReport], data: &SystemData, dt: f64) -> bool {
     use super::simulate::SimTerm;
     let parsed: Option<Vec<SimTerm>> = terms.iter().map(|t| SimTerm::parse(&t.term, &[])).collect();
     let Some((_, se)) = parsed.and_then(|p| super::report::refit(dt, data, 0, &p)) else {

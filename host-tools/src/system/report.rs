@@ -93,6 +93,12 @@ pub struct SystemReport {
     /// is in x − oₓ and v − oᵥ, and x' = v − oᵥ.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub offsets: Option<[f64; 2]>,
+    /// One-way coupling: x'' without the electrical states (the single equation of the
+    /// mechanical channels), the electrical equations still driven by the motion, because
+    /// the two-way model's coupling failed the mechanical energy balance
+    /// ([`super::quality::energy_balance`]): the sentence saying so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub one_way: Option<String>,
     /// Warnings (the model is not refined, x integrated from v, …).
     pub warnings: Vec<String>,
     /// One sentence per rejected sample; not part of the JSON.
@@ -181,6 +187,7 @@ impl SystemReport {
             quality: None,
             algebraic: None,
             offsets: None,
+            one_way: None,
             warnings,
             rejections: Vec::new(),
         }
@@ -206,6 +213,9 @@ impl SystemReport {
                 "  algebraic: {} follows v within {:.1} % of its RMS (a coil of negligible inductance, or a time constant far under the forcing's period): no dynamics of its own for an equation {}' to identify; {}\n",
                 a.channel, a.nrmse_percent, a.channel, a.damping
             ));
+        }
+        if let Some(w) = &self.one_way {
+            out.push_str(&format!("  one-way coupling: {w}\n"));
         }
         out.push_str(&format!("model: {}\n", self.note));
         out.push_str(&format!("  ± {}\n", self.standard_errors));

@@ -590,6 +590,13 @@ pub fn nrmse(sim: &[f64], rec: &[f64]) -> f64 {
     (e / d.max(f64::MIN_POSITIVE)).sqrt()
 }
 
+/// Free runs whose mean power `lssi simulate --load-ohms` prints beside the first run's.
+pub const ENSEMBLE_RUNS: usize = 8;
+
+/// How far the other runs start from the first row's state, a fraction of x's and v's RMS
+/// (on a circle in the (x, v) plane).
+pub const ENSEMBLE_NUDGE: f64 = 0.01;
+
 /// `lssi simulate MODEL.json FILE.csv` for a system: prints each state's NRMSE against the
 /// recording (and the mean power with `--load-ohms`); `out` gets t and every simulated
 /// state (CSV).
@@ -732,12 +739,47 @@ pub fn simulate_command(
             } else {
                 ("V²/R", |ms, r| ms / r)
             };
-        let p_sim = power(rms(&column(2 * sim.displacements + k)).powi(2), ohms);
+        let slot = 2 * sim.displacements + k;
+        let p_sim = power(rms(&column(slot)).powi(2), ohms);
         let p_rec = power(rms(&data.electrical[k].values).powi(2), ohms);
         text.push_str(&format!(
             "  mean power {formula} at {ohms} Ω: simulated {p_sim:.4e} W, recorded {p_rec:.4e} W ({:+.1} %)\n",
             100.0 * (p_sim / p_rec - 1.0)
         ));
+        // One free run's power is one sample of a chaotic attractor's: the mean over free
+        // runs from starts a little apart, with its spread (a periodic response's runs
+        // converge and agree).
+        if diverged.is_none() {
+            let scale = [rms(&column(0)), rms(&column(1))];
+            let mut powers = vec![p_sim];
+            for j in 1..ENSEMBLE_RUNS {
+                let angle = std::f64::consts::TAU * j as f64 / (ENSEMBLE_RUNS - 1) as f64;
+                let mut s = start;
+                s[0] += ENSEMBLE_NUDGE * scale[0] * angle.cos();
+                s[1] += ENSEMBLE_NUDGE * scale[1] * angle.sin();
+                let run = sim.run(&r.t, &u, s, rms(&r.x) + 1.0);
+                let e: Vec<f64> = run.iter().map(|q| q[indices[slot]]).collect();
+                if e.iter().all(|q| q.is_finite()) {
+                    powers.push(power(rms(&e).powi(2), ohms));
+                }
+            }
+            let n = powers.len() as f64;
+            let mean = powers.iter().sum::<f64>() / n;
+            let sd = (powers.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0))
+                .sqrt();
+            let (lo, hi) = powers
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &p| {
+                    (a.min(p), b.max(p))
+                });
+            text.push_str(&format!(
+                "  mean power over {} free runs (the first row's state and {} starts {:.0} % of x's and v's RMS away): {mean:.4e} W, sd {sd:.2e} W ({lo:.4e} to {hi:.4e} W), recorded {p_rec:.4e} W ({:+.1} %)\n",
+                powers.len(),
+                powers.len() - 1,
+                100.0 * ENSEMBLE_NUDGE,
+                100.0 * (mean / p_rec - 1.0)
+            ));
+        }
     }
     crate::out!("{text}");
     if let Some(path) = out {

@@ -130,9 +130,13 @@ fn a_negative_damping_is_named_in_the_harvester_reading() {
     let path = dir.path().join("absolute.csv");
     std::fs::write(&path, absolute).unwrap();
     let absolute = report(&path);
+    // Since session 15 the mechanical energy balance withholds it first: its coupling takes
+    // out what the excitation never put in (a negative damping feeds it).
     assert!(
-        absolute.contains("x'' has a negative damping")
-            && absolute.contains("check that x and v are relative to the base"),
+        (absolute.contains("x'' has a negative damping")
+            && absolute.contains("check that x and v are relative to the base"))
+            || (absolute.contains("no deterministic dynamics found")
+                && absolute.contains("balances only through a negative damping")),
         "{absolute}"
     );
 }
