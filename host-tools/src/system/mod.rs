@@ -912,6 +912,9 @@ fn one_way(
     Ok((report, q))
 }
 
+/// A refit x'' with its damping: the terms, their coefficients and standard errors, v's index.
+type Damped = (Vec<simulate::SimTerm>, Vec<f64>, Vec<f64>, usize);
+
 /// x'''s `terms` (selected without v, in x − oₓ and v − oᵥ for `offsets`) with the damping v
 /// added, refitted by least squares on the system's rows ([`report::refit`]) in the
 /// recording's coordinates (with offsets, 1 and x's lower powers join, so the shifted
@@ -923,7 +926,7 @@ fn with_damping(
     offsets: [f64; 2],
     data: &SystemData,
     dt: f64,
-) -> Option<(Vec<simulate::SimTerm>, Vec<f64>, Vec<f64>, usize)> {
+) -> Option<Damped> {
     use simulate::SimTerm;
     let parsed: Vec<SimTerm> = terms
         .iter()
