@@ -756,7 +756,9 @@ pub fn identify_system(
             quality.failures.push(
                 sentence.replace(", and x'' is the single equation of the mechanical channels without it (one-way coupling: the electrical equation is still driven by the motion)", ""),
             );
-        } else {
+        } else if !no_refine {
+            // (--no-refine prints the device's model as it computes it: a device has no
+            // one-way refit, and `lssi replay` must equal `identify --f32 --no-refine`.)
             let (one_way, q) = one_way(data, options, no_refine, &report, sentence.clone())?;
             // Taken only when it is a beam's: a damping (v's coefficient negative) and a
             // bounded free run. BistableX's intrawell records fail the balance too, and their
