@@ -819,7 +819,16 @@ fn one_way(
         match pipeline::identify(&data.recording, options, refine) {
             Ok(done) => (done.report, done.refined, done.warnings, None),
             Err(Failure::Withheld(sentence, reasons, report)) => {
-                (*report, None, reasons, Some(sentence))
+                // The reasons, not the sentence: it names the file, and the Python package
+                // (which names "array") must give the command's words.
+                let why = if reasons.is_empty() {
+                    sentence
+                        .split_once(": ")
+                        .map_or(sentence.clone(), |(_, w)| w.to_owned())
+                } else {
+                    reasons.join("; ")
+                };
+                (*report, None, reasons, Some(why))
             }
             Err(Failure::Error(e)) => return Err(CliError::Identify(e)),
         };
