@@ -759,7 +759,7 @@ pub fn identify_system(
         } else if !no_refine {
             // (--no-refine prints the device's model as it computes it: a device has no
             // one-way refit, and `lssi replay` must equal `identify --f32 --no-refine`.)
-            let (one_way, q) = one_way(data, options, no_refine, &report, sentence.clone())?;
+            let (one_way, q) = one_way(data, options, &report, sentence.clone())?;
             // Taken only when it is a beam's: a damping (v's coefficient negative) and a
             // bounded free run. BistableX's intrawell records fail the balance too, and their
             // one-way x'' (0.45 + 10.6 v − 1200 x·v …: no stiffness, a negative damping)
@@ -805,18 +805,13 @@ pub fn identify_system(
 fn one_way(
     data: &SystemData,
     options: &Options,
-    no_refine: bool,
     two_way: &SystemReport,
     sentence: String,
 ) -> Result<(SystemReport, quality::SystemQuality), CliError> {
     use crate::identify::pipeline::{self, Failure, Refine};
-    let refine = if no_refine {
-        Refine::No("not refined (--no-refine)")
-    } else {
-        Refine::Yes
-    };
+    // Refined: --no-refine keeps the device's two-way model and never comes here.
     let (single, refined, warnings, withheld) =
-        match pipeline::identify(&data.recording, options, refine) {
+        match pipeline::identify(&data.recording, options, Refine::Yes) {
             Ok(done) => (done.report, done.refined, done.warnings, None),
             Err(Failure::Withheld(sentence, reasons, report)) => {
                 // The reasons, not the sentence: it names the file, and the Python package
