@@ -24,6 +24,7 @@
 //!   (`lssi simulate` for systems).
 //! - [`power`]: the harvester in physical terms for a load resistance (`--load-ohms`).
 
+pub mod calibrate;
 pub mod power;
 pub mod proportional;
 pub mod quality;
@@ -759,7 +760,13 @@ pub fn identify_system(
         } else if !no_refine {
             // (--no-refine prints the device's model as it computes it: a device has no
             // one-way refit, and `lssi replay` must equal `identify --f32 --no-refine`.)
-            let (one_way, q) = one_way(data, options, &report, sentence.clone())?;
+            // A chaotic record (the streaming model's held-out error over eight periods
+            // beyond refine::CHAOTIC_PERCENT: segments of two).
+            let chaotic = report
+                .refinement
+                .as_ref()
+                .is_some_and(|r| r.held_out_periods == 2);
+            let (one_way, q) = one_way(data, options, &report, sentence.clone(), chaotic)?;
             // Taken only when it is a beam's: a damping (v's coefficient negative) and a
             // bounded free run. BistableX's intrawell records fail the balance too, and their
             // one-way x'' (0.45 + 10.6 v − 1200 x·v …: no stiffness, a negative damping)
@@ -807,6 +814,7 @@ fn one_way(
     options: &Options,
     two_way: &SystemReport,
     sentence: String,
+    chaotic: bool,
 ) -> Result<(SystemReport, quality::SystemQuality), CliError> {
     use crate::identify::pipeline::{self, Failure, Refine};
     // Refined: --no-refine keeps the device's two-way model and never comes here.
@@ -899,6 +907,31 @@ fn one_way(
     report.warnings.push(sentence);
     report.warnings.extend(damping_added);
     report.warnings.extend(warnings);
+    // A chaotic record: the damping set by the record's harvested power (calibrate.rs).
+    if chaotic
+        && let Some(sim) = simulate::SystemSim::of_report(&report)
+        && let Some(c) = calibrate::calibrate_damping(&sim, data)
+        && c.after != c.before
+        && let Some(term) = report
+            .equations
+            .first_mut()
+            .and_then(|e| e.terms.iter_mut().find(|t| t.term == "v"))
+    {
+        term.coef = c.after;
+        report.warnings.push(format!(
+            "a chaotic record: x'''s damping v {:.4e} was scaled to {:.4e} so that the mean square of the electrical state over {} free runs (driven by the record's u) is the record's ({:.1} % of it before, {:.1} % after): a free run of a chaotic record samples its attractor, which the fitted damping left too {}",
+            c.before,
+            c.after,
+            simulate::ENSEMBLE_RUNS,
+            100.0 * c.ratio_before,
+            100.0 * c.ratio_after,
+            if c.ratio_before < 1.0 { "weak" } else { "strong" }
+        ));
+        report.note.push_str(&format!(
+            "; the damping calibrated on the record's electrical mean square ({:.4e} to {:.4e})",
+            c.before, c.after
+        ));
+    }
     let mut q = quality::assess(&report, data);
     // Withheld whatever its gate says: the record does not determine the transducer's
     // reaction in x'' (the two-way fit failed the balance), and a one-way x'' that follows a
