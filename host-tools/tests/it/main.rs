@@ -41,6 +41,7 @@ mod stuck;
 mod sweep;
 mod system;
 mod system_coil;
+mod system_chaos;
 mod system_energy;
 mod system_gate;
 mod system_load;
