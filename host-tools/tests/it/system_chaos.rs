@@ -25,13 +25,29 @@ fn a_chaotic_records_damping_is_calibrated_on_its_harvested_power() {
         dir.path(),
         "c.csv",
         &[
-            "piezo", "--wells", "bistable", "--input", "--observe", "xv", "--amplitude", "2.0",
-            "--rate", "1000", "--t-end", "30", "--seed", "3",
+            "piezo",
+            "--wells",
+            "bistable",
+            "--input",
+            "--observe",
+            "xv",
+            "--amplitude",
+            "2.0",
+            "--rate",
+            "1000",
+            "--t-end",
+            "30",
+            "--seed",
+            "3",
         ],
     );
-    let data = read_if_system(&path, &ColumnNames::default(), &ElectricalColumns::default())
-        .unwrap()
-        .unwrap();
+    let data = read_if_system(
+        &path,
+        &ColumnNames::default(),
+        &ElectricalColumns::default(),
+    )
+    .unwrap()
+    .unwrap();
     let truth_sim = SystemSim::from_json(&truth(&path), "truth").unwrap();
     let v = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
     let at = truth_sim.equations[0]
@@ -45,7 +61,10 @@ fn a_chaotic_records_damping_is_calibrated_on_its_harvested_power() {
     };
     // The truth's free runs: within sampling error of the record (30 s, about 90 hops).
     let truth_ratio = ensemble_mean_square(&truth_sim, &data).unwrap() / recorded;
-    assert!((truth_ratio - 1.0).abs() < 0.1, "the truth's free runs: {truth_ratio}");
+    assert!(
+        (truth_ratio - 1.0).abs() < 0.1,
+        "the truth's free runs: {truth_ratio}"
+    );
 
     let mut damped = truth_sim.clone();
     damped.equations[0][at].1 = 4.0 * c_true;
