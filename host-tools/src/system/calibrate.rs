@@ -25,7 +25,8 @@ use super::simulate::{ENSEMBLE_NUDGE, ENSEMBLE_RUNS, SimTerm, State, SystemSim, 
 
 /// The relative distance of the free runs' mean ⟨E²⟩ from the record's within which the
 /// damping is left as it is or the scan stops: about the spread of the true model's own
-/// ensemble about a chaotic record's 40 s (5 %, `lssi gen piezo --wells bistable`).
+/// ensemble about a chaotic record's 40 s (`lssi gen piezo --wells bistable --amplitude 1.65 …
+/// 2.55 --x0 0.003 --seed 101 --t-end 80`: −3.5 to +6.2 %, 9 of 10 within 5 %).
 pub const TOLERANCE: f64 = 0.05;
 
 /// The damping's factors tried, in order, when the free runs harvest too little (less
