@@ -46,6 +46,13 @@ pub const MIN_PERIODS: f64 = 2.5;
 pub const MIN_DRIFT: f64 = 0.08;
 /// The drift in resolution widths (2π over a segment's duration).
 pub const MIN_RESOLUTIONS: f64 = 1.0;
+/// Kendall's τ of the inlying lines against their segment, in the drift's direction, at
+/// least: a sweep's lines move one way (segment by segment, within their interpolation's
+/// noise), where a weakly forced bistable beam's beating transient, whose lines lie within a
+/// resolution width of a straight drift only because a short segment's width is a fifth of
+/// the frequency, wander both ways (hostile seed 20733: 36.6, 38.5, 35.8, 32.2, 26.6, 26.2,
+/// 30.4, 33.3, 31.2, 27.4, 28.4 rad/s, τ −0.45).
+pub const MIN_TAU: f64 = 0.7;
 
 /// How much stronger the dechirped line must be than the record's strongest line.
 pub const CHIRP_GAIN: f64 = 1.2;
@@ -432,13 +439,20 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
             (lo.min(l), hi.max(l))
         });
     let late = late_high - late_low;
+    let kept: Vec<f64> = measured
+        .iter()
+        .filter(|(i, _)| inliers.contains(i))
+        .map(|&(_, l)| l)
+        .collect();
+    let tau = kendall_tau(&kept) * slope.signum();
     let drifts = low > 0.0
+        && tau >= MIN_TAU
         && total >= MIN_DRIFT * low
         && total >= MIN_RESOLUTIONS * resolution
         && late >= 0.5 * MIN_DRIFT * late_low;
     if debug {
         eprintln!(
-            "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, drifts {drifts}",
+            "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, tau {tau:.2}, drifts {drifts}",
             inliers.len()
         );
     }
@@ -451,6 +465,20 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
         seconds,
         segments,
     })
+}
+
+/// Kendall's τ of `values` against their order: (concordant − discordant) / pairs, 0 for
+/// fewer than two.
+fn kendall_tau(values: &[f64]) -> f64 {
+    let mut sum = 0.0;
+    let mut pairs = 0.0;
+    for (a, &p) in values.iter().enumerate() {
+        for &q in &values[a + 1..] {
+            sum += (q - p).signum() * f64::from(u8::from(q != p));
+            pairs += 1.0;
+        }
+    }
+    if pairs > 0.0 { sum / pairs } else { 0.0 }
 }
 
 /// Whether the recording keeps oscillating where the model's free run (from the recording's
@@ -547,4 +575,29 @@ fn line_share(power: f64, y: &[f64], window: &[f64]) -> f64 {
     let sum_w2: f64 = window.iter().map(|w| w * w).sum();
     let energy: f64 = y.iter().zip(window).map(|(v, w)| (v * w).powi(2)).sum();
     2.0 * sum_w2 * power / (sum_w * sum_w * energy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sweep's segment lines move one way; hostile seed 20733's (a weakly forced bistable
+    /// beam's beating transient, 0.94 s segments whose resolution width is 6.7 rad/s) wander
+    /// both ways and fall short of [`MIN_TAU`] (they passed the straight-drift test).
+    #[test]
+    fn lines_that_wander_both_ways_are_not_a_drift() {
+        let sweep = [10.6, 12.1, 13.4, 15.3, 16.8, 18.2, 20.1, 21.4, 23.3, 24.6];
+        assert_eq!(kendall_tau(&sweep), 1.0);
+        let jittered = [10.6, 12.1, 11.9, 15.3, 16.8, 16.5, 20.1, 21.4, 23.3, 24.6];
+        assert!(kendall_tau(&jittered) >= MIN_TAU);
+        let beating = [
+            36.6, 38.5, 35.8, 32.2, 26.6, 26.2, 30.4, 33.3, 31.2, 27.4, 28.4,
+        ];
+        assert!(
+            -kendall_tau(&beating) < MIN_TAU,
+            "{}",
+            kendall_tau(&beating)
+        );
+        assert_eq!(kendall_tau(&[1.0]), 0.0);
+    }
 }
