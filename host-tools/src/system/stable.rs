@@ -23,10 +23,10 @@
 use nalgebra::DMatrix;
 
 use super::SystemData;
-use crate::identify::periodic::tone;
 use super::quality::free_run_bounded;
 use super::report::SystemReport;
 use super::simulate::{SimTerm, State, SystemSim};
+use crate::identify::periodic::tone;
 
 /// The mechanical velocity term of x''.
 const V_TERM: SimTerm = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
@@ -418,6 +418,43 @@ mod tests {
             told.starts_with("withheld; ") && told.contains("--poly-order 2"),
             "{told}"
         );
+    }
+
+    /// The record's x with a slow residue (as v integrated keeps: 30 % of x's RMS at 0.25
+    /// Hz) and u with a small disturbance far from the tone (a sawtooth at 382 Hz): the damping traded against x and u by least
+    /// squares over the samples shrinks the nearly cancelling multiples of x and u the tone
+    /// needs, and the stabilised model's forced response turns (V NRMSE 20–30 % here); traded
+    /// at the tone it keeps the truth's forced response.
+    #[test]
+    fn the_damping_is_traded_at_the_tone_despite_a_slow_residue_in_x() {
+        for w in [30.0, 45.0] {
+            let clean = record(w);
+            let truth = harvester(-2.0);
+            let along = v_on_record(&truth, &clean).unwrap();
+            let bad = with_damping(&truth, &along, -30.0);
+            let mut data = record(w);
+            let rms = |s: &[f64]| (s.iter().map(|q| q * q).sum::<f64>() / s.len() as f64).sqrt();
+            let (sx, su) = (
+                rms(&data.recording.x),
+                rms(data.recording.u.as_deref().unwrap()),
+            );
+            let r = &mut data.recording;
+            for (x, t) in r.x.iter_mut().zip(&r.t) {
+                *x += 0.3 * sx * (2.0 * std::f64::consts::PI * 0.25 * t).sin();
+            }
+            for (i, u) in r.u.as_mut().unwrap().iter_mut().enumerate() {
+                *u += 0.05 * su * (((i as f64) * 0.618_034).fract() - 0.5);
+            }
+            let (fixed, _) = stabilised(&bad, &data).expect("stabilised");
+            let r = &data.recording;
+            let run = fixed.run(&r.t, r.u.as_deref().unwrap(), simulate_first(&data), 0.0);
+            let v: Vec<f64> = run.iter().map(|s| s[2]).collect();
+            let miss = nrmse(
+                &v[v.len() / 2..],
+                &clean.electrical[0].values[v.len() / 2..],
+            );
+            assert!(miss < 0.05, "w {w}: V NRMSE {miss}");
+        }
     }
 
     #[test]
