@@ -755,7 +755,7 @@ pub fn identify_system(
     // was moved into x and u as v projects on them at the tone, so its u term puts in, at the
     // tone, the power the damping takes out, and it would pass the balance by construction
     // (`lssi gen piezo --wells bistable --input --observe v --amplitude 0.6 --omega 40.8
-    // --capacitance 5e-8`, seeds 6-8: x'' = … − 23.7 u, truth − u, printed with exit 0).
+    // --capacitance 5e-8`, seeds 3 and 6-8: x'' = … − 23.7 u, truth − u, printed with exit 0).
     let balanced = match &unstabilised {
         Some(before) if report.model == "stabilised" => before,
         _ => &report,
