@@ -9,7 +9,7 @@
 # apart, the first run's figure and the spread printed above it), met or not: for the streaming system (--no-refine) and the refined
 # one (the default), a withheld model's prediction shown beside the gate's reason.
 #
-#   [PLOT_DIR=DIR] scripts/bistablex-system.sh [DATA_DIR] [extra `lssi identify` flags]
+#   [PLOT_DIR=DIR] [KEEP_TMP=DIR] scripts/bistablex-system.sh [DATA_DIR] [extra `lssi identify` flags]
 #
 # Channels (README.txt of the data): u = base_acc_g · 9.81 m/s²; v = the vibrometer's
 # velocity X3/10 m/s minus the base's (the base acceleration integrated), each with its drift
@@ -24,8 +24,8 @@ EXTRA=("$@")
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-target}
 [ -n "${NO_BUILD:-}" ] || cargo build --release --bin lssi -q
 LSSI=$CARGO_TARGET_DIR/release/lssi
-TMP=$(mktemp -d)
-trap 'rm -rf "$TMP"' EXIT
+TMP=${KEEP_TMP:-$(mktemp -d)}
+[ -n "${KEEP_TMP:-}" ] || trap 'rm -rf "$TMP"' EXIT
 if [ ! -d "$DATA" ]; then
   echo "bistablex-system: no data at $DATA (give the folder of BistableX's CSVs)" >&2
   exit 2
