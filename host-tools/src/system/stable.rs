@@ -293,7 +293,7 @@ pub fn stabilise(report: &mut SystemReport, data: &SystemData) -> bool {
     }
     report.model = "stabilised".into();
     let sentence = format!(
-        "stabilised: the identified model's free run diverged, its linearisation about the recorded mean state having an eigenvalue with real part +{:.3} s⁻¹ (a beam that gains energy by itself); x''s damping (v: {} → {}) was increased, the same amount moved into x''s x, u and harmonic terms as v projects on them along the record (which keeps the recorded orbit), so that the largest real part is {:.3}; no standard errors (the record does not choose this model by its own fit)",
+        "stabilised: the identified model's free run diverged, its linearisation about the recorded mean state having an eigenvalue with real part +{:.3} s⁻¹ (a beam that gains energy by itself); x''s damping (v: {} → {}) was increased, the same amount moved into x''s x, u and harmonic terms as v projects on them (at the tone when v is one steady tone, else along the record: either keeps the recorded orbit), so that the largest real part is {:.3}; no standard errors (the record does not choose this model by its own fit)",
         what.sigma,
         super::report::number(what.damping.0),
         super::report::number(what.damping.1),
