@@ -21,7 +21,7 @@
 use rayon::prelude::*;
 
 use super::SystemData;
-use super::simulate::{ENSEMBLE_NUDGE, ENSEMBLE_RUNS, SimTerm, State, SystemSim, first_state, rms};
+use super::simulate::{ENSEMBLE_RUNS, SimTerm, SystemSim, ensemble_start, first_state, rms};
 
 /// The relative distance of the free runs' mean ⟨E²⟩ from the record's within which the
 /// damping is left as it is or the scan stops: about the spread of the true model's own
@@ -62,13 +62,7 @@ pub fn ensemble_mean_square(sim: &SystemSim, data: &SystemData) -> Option<f64> {
     let each: Vec<Option<f64>> = (0..ENSEMBLE_RUNS)
         .into_par_iter()
         .map(|j| {
-            let mut s: State = start;
-            if j > 0 {
-                let angle = std::f64::consts::TAU * j as f64 / (ENSEMBLE_RUNS - 1) as f64;
-                s[0] += ENSEMBLE_NUDGE * scale[0] * angle.cos();
-                s[1] += ENSEMBLE_NUDGE * scale[1] * angle.sin();
-            }
-            let run = sim.run(&r.t, &u, s, bound);
+            let run = sim.run(&r.t, &u, ensemble_start(start, scale, j), bound);
             let e: Vec<f64> = run.iter().map(|q| q[slot]).collect();
             e.iter()
                 .all(|q| q.is_finite())

@@ -597,6 +597,19 @@ pub const ENSEMBLE_RUNS: usize = 8;
 /// (on a circle in the (x, v) plane).
 pub const ENSEMBLE_NUDGE: f64 = 0.01;
 
+/// The ensemble's `j`th start: `start` with x and v moved [`ENSEMBLE_NUDGE`] of `scale` (their
+/// RMS) around a circle, j of [`ENSEMBLE_RUNS`] − 1 steps (j = 0 and the last are the same
+/// nudge as the circle closes; the runs take j from 1, or 0 for the start itself).
+pub fn ensemble_start(start: State, scale: [f64; 2], j: usize) -> State {
+    let mut s = start;
+    if j > 0 {
+        let angle = std::f64::consts::TAU * j as f64 / (ENSEMBLE_RUNS - 1) as f64;
+        s[0] += ENSEMBLE_NUDGE * scale[0] * angle.cos();
+        s[1] += ENSEMBLE_NUDGE * scale[1] * angle.sin();
+    }
+    s
+}
+
 /// `lssi simulate MODEL.json FILE.csv` for a system: prints each state's NRMSE against the
 /// recording (and the mean power with `--load-ohms`); `out` gets t and every simulated
 /// state (CSV).
@@ -753,11 +766,7 @@ pub fn simulate_command(
             let scale = [rms(&column(0)), rms(&column(1))];
             let mut powers = vec![p_sim];
             for j in 1..ENSEMBLE_RUNS {
-                let angle = std::f64::consts::TAU * j as f64 / (ENSEMBLE_RUNS - 1) as f64;
-                let mut s = start;
-                s[0] += ENSEMBLE_NUDGE * scale[0] * angle.cos();
-                s[1] += ENSEMBLE_NUDGE * scale[1] * angle.sin();
-                let run = sim.run(&r.t, &u, s, rms(&r.x) + 1.0);
+                let run = sim.run(&r.t, &u, ensemble_start(start, scale, j), rms(&r.x) + 1.0);
                 let e: Vec<f64> = run.iter().map(|q| q[indices[slot]]).collect();
                 if e.iter().all(|q| q.is_finite()) {
                     powers.push(power(rms(&e).powi(2), ohms));
