@@ -1202,8 +1202,13 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
                 widen_unbacked(report, &streaming);
             }
             widen_by_half(report, &info.first_half);
+            // The terms backward elimination dropped (their coefficients 0 in the refined
+            // model) leave the equations.
+            for e in &mut report.equations {
+                e.terms.retain(|t| t.coef != 0.0);
+            }
             report.note = format!(
-                "refined on simulation error ({} together, every equation's coefficients): refined on the first half, it predicts the second half with an NRMSE of {:.2} % against the streaming model's {:.2} % (segments of {} periods from fitted initial states, the excitation alone)",
+                "refined on simulation error ({} together, every equation's coefficients{}): refined on the first half, it predicts the second half with an NRMSE of {:.2} % against the streaming model's {:.2} % (segments of {} periods from fitted initial states, the excitation alone)",
                 {
                     let names: Vec<String> = quality::recorded_states(data)
                         .into_iter()
@@ -1215,6 +1220,15 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
                         }
                         _ => names.join(""),
                     }
+                },
+                if info.dropped.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; {} dropped, each under {:.0} of its standard errors from 0 and the held-out prediction no worse without",
+                        info.dropped.join(", "),
+                        crate::identify::refine::SIGNIFICANT_SE
+                    )
                 },
                 info.held_out_refined_percent,
                 info.held_out_streaming_percent,

@@ -1,7 +1,7 @@
-//! Refinement of a system on simulation error: the streaming system's support kept, every
-//! equation's coefficients refined together so that the simulated x (and v when recorded)
-//! and electrical channels follow the recording, as single equations are refined
-//! ([`crate::identify::refine`]).
+//! Refinement of a system on simulation error: the streaming system's support (less the
+//! terms backward elimination drops, [`eliminate`]), every equation's coefficients refined
+//! together so that the simulated x (and v when recorded) and electrical channels follow the
+//! recording, as single equations are refined ([`crate::identify::refine`]).
 //!
 //! - **Multiple shooting.** The record is cut into segments of two periods of the dominant
 //!   frequency or the forcing (the quality gate's horizon), each simulated (the simulator of
@@ -31,7 +31,7 @@ use serde::Serialize;
 
 use super::SystemData;
 use super::quality::{StateEstimator, horizon_samples, recorded_states};
-use super::simulate::{State, SystemSim};
+use super::simulate::{SimTerm, State, SystemSim};
 
 /// Levenberg–Marquardt iterations of a joint fit, at most.
 const ITERATIONS: usize = 25;
@@ -90,6 +90,9 @@ pub struct Refinement {
     /// moves further ([`super::widen_by_half`]).
     #[serde(skip)]
     pub first_half: Vec<Vec<f64>>,
+    /// The terms backward elimination dropped from the streaming support (`x''`'s `v^3`),
+    /// when the refined model was taken ([`eliminate`]).
+    pub dropped: Vec<String>,
 }
 
 /// A refined system.
@@ -597,6 +600,17 @@ pub fn refine_and_check(
         streaming_score = held_out_percent(sim, data, omega, dt, periods)?;
     }
     let first = refine(sim, data, omega, dt, (0, n / 2));
+    let mut refined_score = first
+        .as_ref()
+        .and_then(|f| held_out_percent(&f.sim, data, omega, dt, periods))
+        .unwrap_or(f64::INFINITY);
+    let (first, dropped) = eliminate(first, refined_score, data, omega, dt, periods);
+    if !dropped.is_empty() {
+        refined_score = first
+            .as_ref()
+            .and_then(|f| held_out_percent(&f.sim, data, omega, dt, periods))
+            .unwrap_or(f64::INFINITY);
+    }
     let first_half: Vec<Vec<f64>> = first.as_ref().map_or_else(Vec::new, |f| {
         f.sim
             .equations
@@ -604,10 +618,6 @@ pub fn refine_and_check(
             .map(|eq| eq.iter().map(|(_, c)| *c).collect())
             .collect()
     });
-    let refined_score = first
-        .as_ref()
-        .and_then(|f| held_out_percent(&f.sim, data, omega, dt, periods))
-        .unwrap_or(f64::INFINITY);
     // A streaming model whose free run
     // from the first row diverges, where the refined one's does not, is worse whatever its
     // held-out error over segments (their fitted states hide an unstable mode).
@@ -630,12 +640,7 @@ pub fn refine_and_check(
         .enumerate()
         .map(|(k, eq)| {
             (
-                match (sim.displacements, k) {
-                    (1, 0) => "x''".to_owned(),
-                    (_, 0) => "x1''".to_owned(),
-                    (_, 1) => "x2''".to_owned(),
-                    (d, k) => format!("{}'", sim.electrical[k - d].symbol()),
-                },
+                target_name(sim, k),
                 eq.iter()
                     .map(|(t, c)| (t.name(&sim.electrical), *c))
                     .collect(),
@@ -652,6 +657,111 @@ pub fn refine_and_check(
         weighted_rms: whole.as_ref().map_or(f64::NAN, |w| w.weighted_rms),
         streaming,
         first_half,
+        dropped: if whole.is_some() { dropped } else { Vec::new() },
     };
     Some((whole, info))
+}
+
+/// Backward elimination over the first half's refinement, as single equations get it
+/// ([`crate::identify::refine`]): the least significant term of any equation, when under
+/// [`SIGNIFICANT_SE`] of its standard errors, is dropped and the rest refined again on the
+/// first half (from their refined coefficients), and so on, at most [`MAX_DROPS`] times; the
+/// sparsest of the chain whose held-out error is within [`NOT_WORSE`] of the chain's best is
+/// kept. The streaming selection keeps, beside a harvester's terms, one or two of the
+/// equation error at a few percent of noise (v², v³, x·v², a sine beside the forcing's
+/// cosine) that the refinement cannot fix the sign of (`scripts/hostile-system.sh`, seeds
+/// 10350, 10360, 10363: withheld as "the recording does not determine the terms").
+/// The linear terms are never dropped: they are the harvester's standard form (stiffness,
+/// damping, coupling, the circuit's own decay), whose absence the quality gate names on its
+/// own; the candidates dropped are the library's constants, higher-order terms, harmonics
+/// and the input u. Returns the model kept (on the first half) and the names of the terms
+/// dropped, as `x''`'s `v^3`.
+fn eliminate(
+    first: Option<Refined>,
+    first_score: f64,
+    data: &SystemData,
+    omega: f64,
+    dt: f64,
+    periods: usize,
+) -> (Option<Refined>, Vec<String>) {
+    let n = data.recording.len();
+    let Some(start) = first else {
+        return (None, Vec::new());
+    };
+    let mut chain: Vec<(Refined, f64, Vec<String>)> = vec![(start, first_score, Vec::new())];
+    for _ in 0..MAX_DROPS {
+        let (current, _, names) = chain.last().expect("the chain starts with one");
+        let sim = &current.sim;
+        let least = sim
+            .equations
+            .iter()
+            .enumerate()
+            .flat_map(|(e, eq)| {
+                let active = eq.iter().filter(|(_, c)| *c != 0.0).count();
+                eq.iter()
+                    .enumerate()
+                    .filter(move |_| active > 1)
+                    .map(move |(j, (t, c))| (e, j, *t, *c))
+            })
+            .filter(|&(_, _, t, c)| {
+                c != 0.0 && !matches!(t, SimTerm::Monomial(p) if p.iter().sum::<u8>() == 1)
+            })
+            .filter_map(|(e, j, _, c)| {
+                let se = current.standard_errors[e][j];
+                (se.is_finite() && se > 0.0).then_some((e, j, c.abs() / se))
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2));
+        if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+            eprintln!(
+                "system elimination: dropped {names:?} held-out {:.3} %, least significant {least:?}, coefficients {:?} ± {:?}",
+                chain.last().map_or(f64::NAN, |c| c.1),
+                sim.equations,
+                current.standard_errors
+            );
+        }
+        let Some((e, j, _)) = least.filter(|l| l.2 < SIGNIFICANT_SE) else {
+            break;
+        };
+        let mut fewer = sim.clone();
+        fewer.equations[e][j].1 = 0.0;
+        let name = format!(
+            "{}'s {}",
+            target_name(sim, e),
+            fewer.equations[e][j]
+                .0
+                .name_in(&sim.electrical, sim.displacements)
+        );
+        let Some(next) = refine(&fewer, data, omega, dt, (0, n / 2)) else {
+            break;
+        };
+        let score = held_out_percent(&next.sim, data, omega, dt, periods).unwrap_or(f64::INFINITY);
+        let mut names = names.clone();
+        names.push(name);
+        chain.push((next, score, names));
+    }
+    let best = chain.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+    let keep = chain
+        .iter()
+        .rposition(|c| c.1 <= best * (1.0 + NOT_WORSE))
+        .unwrap_or(0);
+    let (kept, _, names) = chain.swap_remove(keep);
+    (Some(kept), names)
+}
+
+/// How many terms backward elimination drops at most ([`eliminate`]).
+const MAX_DROPS: usize = 3;
+
+/// How many of its standard errors (refined on the first half) a term other than a linear
+/// one must be from zero not to be tried without ([`eliminate`]): the single equation's
+/// bar ([`crate::identify::refine::SIGNIFICANT_SE`]).
+const SIGNIFICANT_SE: f64 = crate::identify::refine::SIGNIFICANT_SE;
+
+/// An equation's target as the report names it (`x''`, `x1''`, `V'`).
+fn target_name(sim: &SystemSim, k: usize) -> String {
+    match (sim.displacements, k) {
+        (1, 0) => "x''".to_owned(),
+        (_, 0) => "x1''".to_owned(),
+        (_, 1) => "x2''".to_owned(),
+        (d, k) => format!("{}'", sim.electrical[k - d].symbol()),
+    }
 }
