@@ -695,13 +695,6 @@ pub fn identify_system(
     no_refine: bool,
 ) -> Result<Outcome, CliError> {
     args.check_load()?;
-    if args.load_ohms.is_some() && data.second.is_some() {
-        return Err(CliError::Input(format!(
-            "{}: --load-ohms (the power analysis) covers a harvester with one displacement, and this recording has two ({}).",
-            data.recording.path.display(),
-            data.mechanical_names().join(", ")
-        )));
-    }
     let (config, estimated) = configure(data, options, args.coupling_order)?;
     let mut report = if options.f32 {
         run::<f32>(data, config, estimated)?

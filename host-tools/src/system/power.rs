@@ -71,6 +71,9 @@ pub struct Harvester {
     pub coil_ohms: Option<f64>,
     /// The electrical channel: `V` or `i`.
     pub channel: &'static str,
+    /// The displacement the transducer sits on: `x`, or with two displacements the one
+    /// whose velocity drives the electrical equation (`x2`, a secondary beam).
+    pub displacement: &'static str,
     /// −(the V or i term of V' or i'), 1/s.
     pub lambda: Option<f64>,
     /// −(the v term of V' or i'), V (or A) per unit of v.
@@ -140,15 +143,24 @@ fn coefficient(sim: &SystemSim, k: usize, term: SimTerm) -> f64 {
         .map_or(0.0, |(_, c)| *c)
 }
 
-/// The mechanical equation's x-only part f(x) and its stable equilibrium nearest `mean`
-/// within ±`span` of it: (x_eq, −f'(x_eq)).
-fn stable_equilibrium(sim: &SystemSim, mean: f64, span: f64) -> Option<(f64, f64)> {
+/// Mechanical equation `k`'s part in its own displacement alone, f(x) (state index `s`: 0
+/// for x, 4 for x2; any other displacement held at 0), and its stable equilibrium nearest
+/// `mean` within ±`span` of it: (x_eq, −f'(x_eq)).
+fn stable_equilibrium(
+    sim: &SystemSim,
+    k: usize,
+    s: usize,
+    mean: f64,
+    span: f64,
+) -> Option<(f64, f64)> {
     let f = |x: f64| -> f64 {
-        sim.equations[0]
+        sim.equations[k]
             .iter()
             .filter_map(|(t, c)| match t {
                 SimTerm::Constant => Some(*c),
-                SimTerm::Monomial([p, 0, 0, 0, 0, 0]) => Some(c * x.powi(i32::from(*p))),
+                SimTerm::Monomial(p) if p.iter().enumerate().all(|(j, &q)| j == s || q == 0) => {
+                    Some(c * x.powi(i32::from(p[s])))
+                }
                 _ => None,
             })
             .sum()
@@ -263,6 +275,7 @@ pub fn harvester(
         load_ohms: ohms,
         coil_ohms,
         channel: "V",
+        displacement: "x",
         lambda: None,
         kappa: None,
         chi: None,
@@ -306,6 +319,28 @@ pub fn harvester(
         return h;
     };
     let current = sim.electrical[kv] == Electrical::Current;
+    // The electrical equation, and the displacement the transducer sits on: x, or with two
+    // displacements the one whose velocity drives the electrical equation (a two-degree-of-
+    // freedom harvester's secondary beam, x2).
+    let d = sim.displacements;
+    let ke = d + kv;
+    let velocity_of = |k: usize| {
+        SimTerm::Monomial(if k == 0 {
+            [0, 1, 0, 0, 0, 0]
+        } else {
+            [0, 0, 0, 0, 0, 1]
+        })
+    };
+    let km = (0..d)
+        .max_by_key(|&k| coefficient(&sim, ke, velocity_of(k)) != 0.0)
+        .unwrap_or(0);
+    let (x_name, v_name) = match (d, km) {
+        (1, _) => ("x", "v"),
+        (_, 0) => ("x1", "v1"),
+        _ => ("x2", "v2"),
+    };
+    let target = format!("{x_name}''");
+    h.displacement = x_name;
     let algebraic = sim.algebraic.get(kv) == Some(&true);
     if current || coil_ohms.is_some() || algebraic {
         h.transducer = Transducer::Electromagnetic;
@@ -324,46 +359,57 @@ pub fn harvester(
     let mut powers = [0u8; 6];
     powers[2 + kv] = 1;
     let e_term = SimTerm::Monomial(powers);
-    let v_term = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
-    let lambda = -coefficient(&sim, 1 + kv, e_term);
-    let kappa = -coefficient(&sim, 1 + kv, v_term);
-    let chi = coefficient(&sim, 0, e_term);
+    let v_term = velocity_of(km);
+    let lambda = -coefficient(&sim, ke, e_term);
+    let kappa = -coefficient(&sim, ke, v_term);
+    let chi = coefficient(&sim, km, e_term);
     let e = h.channel;
     let r = &data.recording;
     let omega = forcing_omega(&sim, report, data);
-    let mean_x = r.x.iter().filter(|q| q.is_finite()).sum::<f64>() / r.len() as f64;
-    let span = 4.0 * rms(&r.x.iter().map(|q| q - mean_x).collect::<Vec<_>>());
+    let xs: &[f64] = match (km, &data.second) {
+        (1, Some(second)) => &second.x,
+        _ => &r.x,
+    };
+    let mean_x = xs.iter().filter(|q| q.is_finite()).sum::<f64>() / xs.len().max(1) as f64;
+    let span = 4.0 * rms(&xs.iter().map(|q| q - mean_x).collect::<Vec<_>>());
     // The physical reading assumes a beam that dissipates: x'' ∋ −c v with c ≥ 0.
-    let damping = coefficient(&sim, 0, v_term);
+    let damping = coefficient(&sim, km, v_term);
     if damping > 0.0 {
         h.notes.push(format!(
-            "x'' has a negative damping (+{} v), which a passive harvester's beam does not have: unless it is self-excited (galloping, flutter), check that x and v are relative to the base (an absolute velocity, as a vibrometer measures, is not), and read the constants above as the formulas' values only",
+            "{target} has a negative damping (+{} {v_name}), which a passive harvester's beam does not have: unless it is self-excited (galloping, flutter), check that {x_name} and {v_name} are relative to the base (an absolute velocity, as a vibrometer measures, is not), and read the constants above as the formulas' values only",
             super::report::number(damping)
         ));
     }
-    if let Some((x_eq, k)) = stable_equilibrium(&sim, mean_x, span) {
+    if d == 2 {
+        h.notes.push(format!(
+            "with two displacements the beam the transducer sits on is {x_name} ({e}' is driven by {v_name}): its stiffness per mass k/m is −∂{target}/∂{x_name} with the other displacement held, and k² that beam's own coupling factor"
+        ));
+    }
+    let x_index = if km == 0 { 0 } else { 4 };
+    if let Some((x_eq, k)) = stable_equilibrium(&sim, km, x_index, mean_x, span) {
         h.equilibrium = Some(x_eq);
         h.stiffness_per_mass = Some(k);
     } else {
         h.notes.push(
-            "the mechanical equation has no stable equilibrium within 4 RMS of the mean x, so no stiffness and no k²".into(),
+            format!("{target} has no stable equilibrium within 4 RMS of the mean {x_name}, so no stiffness and no k²"),
         );
     }
     if algebraic {
-        proportional_terms(&mut h, &sim, report, kv, omega);
+        proportional_terms(&mut h, &sim, report, (kv, km, v_term), omega);
     } else if kappa != 0.0 {
         h.kappa = Some(kappa);
     } else {
         h.notes
-            .push(format!("{e}' has no v term (κ = 0), so no coupling"));
+            .push(format!("{e}' has no {v_name} term (κ = 0), so no coupling"));
     }
     if algebraic {
         // χ, λ and κ belong to an electrical equation with dynamics: see proportional_terms.
     } else if chi != 0.0 {
         h.chi = Some(chi);
     } else {
-        h.notes
-            .push(format!("x'' has no {e} term (χ = 0), so no mass and no k²"));
+        h.notes.push(format!(
+            "{target} has no {e} term (χ = 0), so no mass and no k²"
+        ));
     }
     if let (Some(k), true) = (h.stiffness_per_mass, kappa * chi != 0.0) {
         h.coupling_k2 = Some(kappa * chi / (k + kappa * chi));
@@ -412,7 +458,7 @@ pub fn harvester(
     let power_of = |model: &SystemSim, u: &[f64], load: f64| -> Option<f64> {
         // A small load's fast electrical decay λ′ is stiff for RK4 at the sample period
         // (stable while λ′ h ≲ 2.8): steps of λ′ h ≤ 1.
-        let decay = coefficient(model, 1 + kv, e_term).abs() * report.sample_period;
+        let decay = coefficient(model, ke, e_term).abs() * report.sample_period;
         let substeps = (decay.ceil() as usize).clamp(1, 1024);
         let states = model.run_substeps(&r.t, u, start, bound, substeps);
         let v: Vec<f64> = states.iter().map(|s| s[2 + kv]).collect();
@@ -442,14 +488,14 @@ pub fn harvester(
     let at_load = |load: f64| -> Option<SystemSim> {
         let (fl, fk, fc) = circuit.scaling(load)?;
         let mut model = sim.clone();
-        for (t, c) in model.equations[1 + kv].iter_mut() {
+        for (t, c) in model.equations[ke].iter_mut() {
             if *t == e_term {
                 *c = -lambda * fl;
             } else if *t == v_term {
                 *c *= fk;
             }
         }
-        for (t, c) in model.equations[0].iter_mut() {
+        for (t, c) in model.equations[km].iter_mut() {
             if *t == e_term {
                 *c *= fc;
             }
@@ -555,16 +601,15 @@ fn proportional_terms(
     h: &mut Harvester,
     sim: &SystemSim,
     report: &SystemReport,
-    kv: usize,
+    (kv, km, v_term): (usize, usize, SimTerm),
     omega: f64,
 ) {
-    let v_term = SimTerm::Monomial([0, 1, 0, 0, 0, 0]);
     let c = coefficient(sim, sim.displacements + kv, v_term);
     let e = h.channel;
     if c != 0.0 {
         h.gain = Some(c);
     }
-    let damping = -coefficient(sim, 0, v_term);
+    let damping = -coefficient(sim, km, v_term);
     if damping != 0.0 {
         h.damping_per_mass = Some(damping);
     }
@@ -614,19 +659,21 @@ impl Harvester {
         if self.gain.is_some() || self.damping_per_mass.is_some() {
             return self.render_proportional();
         }
+        let x = self.displacement;
+        let v = x.replacen('x', "v", 1);
         let mut out = match self.transducer {
             Transducer::Piezoelectric => format!(
-                "harvester at the recorded load R = {} Ω (per-unit-mass forms: x'' ∋ χ V, V' = −λ V − κ v; SI units when x is in m and V in V)\n",
+                "harvester at the recorded load R = {} Ω (per-unit-mass forms: {x}'' ∋ χ V, V' = −λ V − κ {v}; SI units when {x} is in m and V in V)\n",
                 super::report::number(self.load_ohms)
             ),
             Transducer::Electromagnetic => format!(
-                "electromagnetic harvester at the recorded load R = {} Ω, {} (per-unit-mass forms: x'' ∋ χ {e}, {e}' = −λ {e} − κ v; SI units when x is in m)\n",
+                "electromagnetic harvester at the recorded load R = {} Ω, {} (per-unit-mass forms: {x}'' ∋ χ {e}, {e}' = −λ {e} − κ {v}; SI units when {x} is in m)\n",
                 super::report::number(self.load_ohms),
                 self.coil_text()
             ),
         };
         out.push_str(&format!(
-            "  λ = {} 1/s   κ = {}   χ = {}   stiffness per mass k/m = {} 1/s² (at x = {})\n",
+            "  λ = {} 1/s   κ = {}   χ = {}   stiffness per mass k/m = {} 1/s² (at {x} = {})\n",
             n(self.lambda),
             n(self.kappa),
             n(self.chi),
