@@ -685,10 +685,113 @@ pub enum Outcome {
     Withheld(String, Box<SystemReport>),
 }
 
+/// How far from zero (a fraction of its range) the mean of an electrical channel, or of a
+/// mechanical one in whole numbers (raw counts), makes it a channel with a reference
+/// ([`references`]).
+pub const OFF_CENTRE: f64 = 0.05;
+
+/// The references of a system's channels, by state name, and the recording less them
+/// (`None`: nothing to subtract); each is the channel's mean over the record. A mechanical
+/// channel has one when its single equation's would
+/// ([`crate::identify::Reference::channel`]: the mean of its first rows lies more than three
+/// times their range from zero), or when it holds whole numbers (raw ADC counts) whose mean
+/// is over [`OFF_CENTRE`] of their range from zero; an electrical one when its mean is (a
+/// load's voltage has no steady part). An f32 identifier keeps only a few bits of the motion
+/// on a channel far from zero, and a constant term with its own column collinear with x
+/// (`lssi gen piezo`, x + 0.5 m: withheld as "the x'' equation's terms 1, x are collinear");
+/// with V + 3 V every equation gained a constant. A channel that does not vary keeps its
+/// values (the gate names it as it is).
+pub fn references(
+    data: &SystemData,
+) -> Option<(SystemData, std::collections::BTreeMap<String, f64>)> {
+    use crate::identify::Reference;
+    let varies = |s: &[f64]| {
+        let mut f = s.iter().copied().filter(|q| q.is_finite());
+        f.next().is_some_and(|a| f.any(|b| b != a))
+    };
+    // The whole record's mean (the host has it; the first rows' mean is off by the start's
+    // transient, which a constant term then takes up: x + 0.5 m gave x'' a constant −0.12).
+    let stats = |s: &[f64]| {
+        let (mut sum, mut n, mut lo, mut hi) = (0.0, 0usize, f64::INFINITY, f64::NEG_INFINITY);
+        for &q in s.iter().filter(|q| q.is_finite()) {
+            sum += q;
+            n += 1;
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+        (sum / n.max(1) as f64, hi - lo)
+    };
+    // A mechanical channel far from zero by the single equation's rule, or raw counts (whole
+    // numbers: an ADC's, mid-scale 2048 ± 800 left x'' with a constant of 7.9e6 and x·v,
+    // x²·v beside it, the truth after removing the mean).
+    let mechanical = |s: &[f64]| {
+        let (mean, range) = stats(s);
+        let counts = s.iter().filter(|q| q.is_finite()).all(|q| q.fract() == 0.0);
+        let far = Reference::channel(s) != 0.0 || (counts && mean.abs() > OFF_CENTRE * range);
+        if varies(s) && far { mean } else { 0.0 }
+    };
+    // An electrical channel off centre: a load's voltage or current has no steady part (the
+    // circuit's capacitance or inductance blocks it), so its mean is the sensor's offset.
+    let electrical = |s: &[f64]| {
+        let (mean, range) = stats(s);
+        if varies(s) && mean.abs() > OFF_CENTRE * range {
+            mean
+        } else {
+            0.0
+        }
+    };
+    let names = data.mechanical_names();
+    let mut out = data.clone();
+    let mut map = std::collections::BTreeMap::new();
+    let mut shift = |name: &str, values: &mut Vec<f64>, of: &dyn Fn(&[f64]) -> f64| {
+        let r = of(values);
+        if r != 0.0 {
+            values.iter_mut().for_each(|q| *q -= r);
+            map.insert(name.to_owned(), r);
+        }
+    };
+    if crate::identify::quality::constant(&data.recording).is_none() {
+        shift(names[0], &mut out.recording.x, &mechanical);
+        if let Some(v) = out.recording.v.as_mut() {
+            shift(names[1], v, &mechanical);
+        }
+    }
+    if let Some(second) = out.second.as_mut() {
+        shift("x2", &mut second.x, &mechanical);
+        if let Some((_, v)) = second.v.as_mut() {
+            shift("v2", v, &mechanical);
+        }
+    }
+    for e in &mut out.electrical {
+        shift(e.kind.symbol(), &mut e.values, &electrical);
+    }
+    (!map.is_empty()).then_some((out, map))
+}
+
 /// Identifies a system's recording: the streaming identifier, refinement (unless
 /// `no_refine`), the quality gate and, for a model that passes, the harvester's analysis
-/// (`--load-ohms`). Each rejected sample is named on stderr (the first few).
+/// (`--load-ohms`). Each rejected sample is named on stderr (the first few). Channels far
+/// from zero are identified less their references ([`references`]), which the report names.
 pub fn identify_system(
+    data: &SystemData,
+    options: &Options,
+    args: &SystemArgs,
+    no_refine: bool,
+) -> Result<Outcome, CliError> {
+    let Some((shifted, reference)) = references(data) else {
+        return identify_about_zero(data, options, args, no_refine);
+    };
+    let mut outcome = identify_about_zero(&shifted, options, args, no_refine)?;
+    match &mut outcome {
+        Outcome::Passed(report) | Outcome::Withheld(_, report) => {
+            report.reference = Some(reference);
+        }
+    }
+    Ok(outcome)
+}
+
+/// [`identify_system`] on channels about zero.
+fn identify_about_zero(
     data: &SystemData,
     options: &Options,
     args: &SystemArgs,

@@ -272,6 +272,7 @@ fn of_single(
         harvester: None,
         quality: None,
         offsets: (single.offsets != [0.0, 0.0]).then_some(single.offsets),
+        reference: None,
         algebraic: Some(Algebraic {
             channel: names.clone(),
             nrmse_percent: 100.0 * found.iter().map(|p| p.nrmse).fold(0.0, f64::max),

@@ -93,6 +93,11 @@ pub struct SystemReport {
     /// is in x − oₓ and v − oᵥ, and x' = v − oᵥ.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub offsets: Option<[f64; 2]>,
+    /// The references subtracted from recorded channels far from zero (raw ADC counts, a
+    /// sensor's offset) before identification, by state name: every equation is in the
+    /// channels less them ([`super::references`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<std::collections::BTreeMap<String, f64>>,
     /// One-way coupling: x'' without the electrical states (the single equation of the
     /// mechanical channels), the electrical equations still driven by the motion, because
     /// the two-way model's coupling failed the mechanical energy balance
@@ -187,6 +192,7 @@ impl SystemReport {
             quality: None,
             algebraic: None,
             offsets: None,
+            reference: None,
             one_way: None,
             warnings,
             rejections: Vec::new(),
@@ -245,6 +251,21 @@ impl SystemReport {
         ));
         if let Some(s) = &self.x_from_v {
             out.push_str(&format!("  {s}\n"));
+        }
+        if let Some(reference) = &self.reference {
+            let named: Vec<String> = reference
+                .iter()
+                .map(|(k, v)| format!("{k} {}", number(*v)))
+                .collect();
+            let less: Vec<String> = reference
+                .iter()
+                .map(|(k, v)| format!("{k} − {}", number(*v)))
+                .collect();
+            out.push_str(&format!(
+                "references removed: {} (each the channel's mean, as it lay off zero: raw counts or a sensor's offset; the equations are in {}; lssi simulate and Model.simulate take and give the recording's values)\n",
+                named.join(", "),
+                less.join(", ")
+            ));
         }
         if let Some([ox, ov]) = self.offsets {
             out.push_str(&format!(

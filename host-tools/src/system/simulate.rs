@@ -242,6 +242,31 @@ pub struct SystemSim {
     /// the electrical column gives them: [`crate::identify::Report::offsets`]); the states stay
     /// in the recording's coordinates. Zero but for an algebraic model.
     pub offsets: [f64; 2],
+    /// The references subtracted from the recorded channels before identification (indices
+    /// of [`State`]; [`super::references`]): the equations are in the channels less them,
+    /// and a free run takes and gives states in the recording's coordinates.
+    pub reference: State,
+}
+
+/// A report's references by state name as a [`State`] (zeros without); `None` for a name the
+/// model's states do not have.
+fn reference_state(
+    reference: &Option<std::collections::BTreeMap<String, f64>>,
+    electrical: &[Electrical],
+    displacements: usize,
+) -> Option<State> {
+    let mut out = [0.0; 6];
+    for (name, value) in reference.iter().flatten() {
+        let j = match (name.as_str(), displacements) {
+            ("x", 1) | ("x1", 2) => 0,
+            ("v", 1) | ("v1", 2) => 1,
+            ("x2", 2) => 4,
+            ("v2", 2) => 5,
+            (s, _) => 2 + electrical.iter().position(|e| e.symbol() == s)?,
+        };
+        out[j] = *value;
+    }
+    Some(out)
 }
 
 impl SystemSim {
@@ -280,12 +305,14 @@ impl SystemSim {
                     .collect::<Option<Vec<_>>>()
             })
             .collect::<Option<Vec<_>>>()?;
+        let reference = reference_state(&report.reference, &electrical, displacements)?;
         Some(Self {
             displacements,
             electrical,
             equations,
             algebraic,
             offsets: report.offsets.unwrap_or([0.0, 0.0]),
+            reference,
         })
     }
 
@@ -364,12 +391,31 @@ impl SystemSim {
                 pair
             }
         };
+        let reference = match value.get("reference") {
+            None | Some(serde_json::Value::Null) => [0.0; 6],
+            Some(r) => {
+                let map = r
+                    .as_object()
+                    .and_then(|o| {
+                        o.iter()
+                            .map(|(k, v)| Some((k.clone(), v.as_f64()?)))
+                            .collect::<Option<std::collections::BTreeMap<String, f64>>>()
+                    })
+                    .ok_or_else(|| {
+                        bad("its \"reference\" is not an object of numbers by state name".into())
+                    })?;
+                reference_state(&Some(map), &electrical, displacements).ok_or_else(|| {
+                    bad("its \"reference\" names a state the model does not have".into())
+                })?
+            }
+        };
         let sim = Self {
             displacements,
             electrical,
             equations: out,
             algebraic,
             offsets,
+            reference,
         };
         // An algebraic channel is a function of the mechanical states alone.
         for k in 0..sim.electrical.len().min(2) {
@@ -483,7 +529,9 @@ impl SystemSim {
     ) -> Vec<State> {
         let substeps = substeps.max(1);
         let mut out = Vec::with_capacity(t.len());
-        let mut s = start;
+        // In the equations' coordinates (the channels less their references), and back.
+        let reference = self.reference;
+        let mut s: State = std::array::from_fn(|j| start[j] - reference[j]);
         let limit = 1e6 * (start.iter().fold(0.0f64, |m, q| m.max(q.abs())) + bound);
         // u[i], the last sample beyond the end (0 without an input).
         let at = |i: usize| {
@@ -497,7 +545,11 @@ impl SystemSim {
             if !dead && self.has_algebraic() {
                 s = self.complete_with(&s, t[i], at(i), &mut trig);
             }
-            out.push(if dead { [f64::NAN; 6] } else { s });
+            out.push(if dead {
+                [f64::NAN; 6]
+            } else {
+                std::array::from_fn(|j| s[j] + reference[j])
+            });
             if i + 1 == t.len() || dead {
                 continue;
             }
@@ -842,6 +894,7 @@ mod tests {
             equations: vec![vec![], vec![(SimTerm::Monomial([0, 0, 1, 0, 0, 0]), -2.0)]],
             algebraic: [false; 2],
             offsets: [0.0, 0.0],
+            reference: [0.0; 6],
         };
         let t: Vec<f64> = (0..=100).map(|i| f64::from(i) * 0.01).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1.0);
@@ -865,6 +918,7 @@ mod tests {
             equations: vec![vec![], vec![(x2, -1.0)], vec![(v2, 1.0)]],
             algebraic: [false; 2],
             offsets: [0.0, 0.0],
+            reference: [0.0; 6],
         };
         let t: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.001).collect();
         let s = sim.run(&t, &[], [0.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1.0);

@@ -347,6 +347,7 @@ mod tests {
             ],
             algebraic: [false; 2],
             offsets: [0.0; 2],
+            reference: [0.0; 6],
         }
     }
 

@@ -46,6 +46,7 @@ mod system_energy;
 mod system_gate;
 mod system_load;
 mod system_more;
+mod system_offsets;
 mod system_omega;
 mod system_power;
 mod system_repair;
