@@ -71,6 +71,7 @@ mod tests;
 pub use choose::{
     Check, Chosen, Horizon, NOT_WORSE_Z, PREDICTABLE_NRMSE_PERCENT, Paired, SIGNIFICANT_SE,
     SUPPORT_PARSIMONY, Tried, Z_BETTER, refine_and_check, refine_and_check_among, refine_recording,
+    selection_bar,
 };
 pub use summary::{Candidate, Summary, SupportChange, TermSummary};
 
