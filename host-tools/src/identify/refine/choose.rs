@@ -313,7 +313,8 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         })
         .collect();
     // Backward elimination from the streaming support refined: its least significant term,
-    // when under SIGNIFICANT_SE of its standard errors, dropped and the rest refined again
+    // when under its bar (`selection_bar` over the library for a term the selection picked,
+    // SIGNIFICANT_SE for x and v), dropped and the rest refined again
     // (from their refined coefficients), and so on. The streaming selection keeps a spurious
     // term of the equation error at a few percent of noise (a constant, v², x·v² beside the
     // harvester's damping at 2 %: each within one or two of its refined standard errors) that
