@@ -317,8 +317,16 @@ fn a_double_well_about_one_well_is_recentred() {
 #[test]
 fn the_selection_bar_is_bonferronis_over_the_library() {
     // Two-sided 0.27 % ÷ m: 3.67σ for 11 candidates, 3.71σ for 13; 3σ for one or unknown.
-    assert!((selection_bar(11) - 3.668).abs() < 0.005, "{}", selection_bar(11));
-    assert!((selection_bar(13) - 3.710).abs() < 0.005, "{}", selection_bar(13));
+    assert!(
+        (selection_bar(11) - 3.668).abs() < 0.005,
+        "{}",
+        selection_bar(11)
+    );
+    assert!(
+        (selection_bar(13) - 3.710).abs() < 0.005,
+        "{}",
+        selection_bar(13)
+    );
     assert_eq!(selection_bar(0), SIGNIFICANT_SE);
     assert_eq!(selection_bar(1), SIGNIFICANT_SE);
     assert!((2..40).all(|m| selection_bar(m + 1) > selection_bar(m)));
