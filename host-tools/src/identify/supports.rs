@@ -33,6 +33,10 @@ pub struct Candidates {
     pub degree: usize,
     /// The sample period the identifier took (the recording's median step), seconds.
     pub sample_period: f64,
+    /// How many library terms the streaming selection chose its support from (the densest
+    /// solution of its sweep); 0 when unknown. Backward elimination holds a selected term to
+    /// a bar that counts them (`refine::selection_bar`).
+    pub library: usize,
 }
 
 impl Candidates {
@@ -110,6 +114,7 @@ impl Candidates {
         }
         Self {
             supports,
+            library: report.solutions.first().map_or(0, |s| s.terms.len()),
             window: report.window,
             degree: usize::from(report.degree),
             sample_period: report.sample_period,
@@ -340,6 +345,7 @@ mod tests {
             window: 31,
             degree: 4,
             sample_period: 0.005,
+            library: 0,
         };
         let start = least_squares_start(&support, &streaming, &data, &derivatives).expect("solves");
         assert_eq!(start.terms[1], (Term::Monomial { px: 1, pv: 0 }, -4.0));

@@ -127,6 +127,7 @@ fn a_term_the_streaming_model_lost_comes_back_from_the_sweep() {
         window: 31,
         degree: 4,
         sample_period: 0.01,
+        library: 0,
     };
     let check = refine_and_check_among(&lost, &candidates, &data);
     assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -165,6 +166,7 @@ fn a_spurious_or_a_missing_term_is_not_taken_over_the_true_support() {
         window: 31,
         degree: 4,
         sample_period: 0.01,
+        library: 0,
     };
     let check = refine_and_check_among(&perturbed(0.03), &candidates, &data);
     assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -192,6 +194,7 @@ fn a_spurious_term_the_streaming_model_kept_is_dropped() {
         window: 31,
         degree: 4,
         sample_period: 0.01,
+        library: 0,
     };
     let check = refine_and_check_among(&streaming, &candidates, &data);
     assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
@@ -220,6 +223,7 @@ fn a_sine_that_only_makes_up_for_the_frequency_error_is_not_taken() {
         window: 31,
         degree: 4,
         sample_period: 0.01,
+        library: 0,
     };
     let check = refine_and_check_among(&streaming, &candidates, &data);
     let [on_streaming, with_sine] =
@@ -308,4 +312,22 @@ fn a_double_well_about_one_well_is_recentred() {
     assert_eq!(coef(DAMPING), Some(-0.1));
     // A centre outside the recorded range is no shifted origin: left alone.
     assert!(super::choose::recentred(&about_the_well, &[1.5, 2.5]).is_none());
+}
+
+#[test]
+fn the_selection_bar_is_bonferronis_over_the_library() {
+    // Two-sided 0.27 % ÷ m: 3.67σ for 11 candidates, 3.71σ for 13; 3σ for one or unknown.
+    assert!(
+        (selection_bar(11) - 3.668).abs() < 0.005,
+        "{}",
+        selection_bar(11)
+    );
+    assert!(
+        (selection_bar(13) - 3.710).abs() < 0.005,
+        "{}",
+        selection_bar(13)
+    );
+    assert_eq!(selection_bar(0), SIGNIFICANT_SE);
+    assert_eq!(selection_bar(1), SIGNIFICANT_SE);
+    assert!((2..40).all(|m| selection_bar(m + 1) > selection_bar(m)));
 }
