@@ -115,32 +115,13 @@ pub fn selection_bar(library: usize) -> f64 {
     let (mut lo, mut hi) = (SIGNIFICANT_SE, 10.0);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if erfc(mid / std::f64::consts::SQRT_2) > alpha {
+        if libm::erfc(mid / std::f64::consts::SQRT_2) > alpha {
             lo = mid;
         } else {
             hi = mid;
         }
     }
     0.5 * (lo + hi)
-}
-
-/// The complementary error function (Numerical Recipes' Chebyshev fit, relative error under
-/// 1.2·10⁻⁷ everywhere): for the tail probabilities of [`selection_bar`].
-fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t
-        * (-z * z - 1.265_512_23
-            + t * (1.000_023_68
-                + t * (0.374_091_96
-                    + t * (0.096_784_18
-                        + t * (-0.186_288_06
-                            + t * (0.278_868_07
-                                + t * (-1.135_203_98
-                                    + t * (1.488_515_87
-                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-            .exp();
-    if x >= 0.0 { r } else { 2.0 - r }
 }
 
 /// Whether a term keeps the single test's bar in backward elimination ([`selection_bar`]):
