@@ -486,7 +486,27 @@ pub fn refine(
     dt: f64,
     span: (usize, usize),
 ) -> Option<Refined> {
-    let p = Problem::new(data, sim, span)?;
+    refine_observing(sim, data, omega, dt, span, true)
+}
+
+/// [`refine`], with x among the states the simulation must follow or not (`observe_x`
+/// false: v and the electrical states alone; `None` when nothing else is recorded). For x
+/// integrated from v, whose drift removal is an estimate ([`super::widen_by_x_integration`]).
+pub fn refine_observing(
+    sim: &SystemSim,
+    data: &SystemData,
+    omega: f64,
+    dt: f64,
+    span: (usize, usize),
+    observe_x: bool,
+) -> Option<Refined> {
+    let mut p = Problem::new(data, sim, span)?;
+    if !observe_x {
+        p.observed.retain(|(j, _, _)| *j != 0);
+        if p.observed.is_empty() {
+            return None;
+        }
+    }
     if p.slots.is_empty() {
         return None;
     }
