@@ -705,10 +705,6 @@ pub fn references(
     data: &SystemData,
 ) -> Option<(SystemData, std::collections::BTreeMap<String, f64>)> {
     use crate::identify::Reference;
-    let varies = |s: &[f64]| {
-        let mut f = s.iter().copied().filter(|q| q.is_finite());
-        f.next().is_some_and(|a| f.any(|b| b != a))
-    };
     // The whole record's mean (the host has it; the first rows' mean is off by the start's
     // transient, which a constant term then takes up: x + 0.5 m gave x'' a constant −0.12).
     let stats = |s: &[f64]| {
@@ -721,6 +717,8 @@ pub fn references(
         }
         (sum / n.max(1) as f64, hi - lo)
     };
+    // A channel that does not vary (range 0, or no finite value) keeps its values.
+    let varies = |range: f64| range > 0.0;
     // A mechanical channel far from zero by the single equation's rule, or raw counts (whole
     // numbers: an ADC's, mid-scale 2048 ± 800 left x'' with a constant of 7.9e6 and x·v,
     // x²·v beside it, the truth after removing the mean).
@@ -728,13 +726,13 @@ pub fn references(
         let (mean, range) = stats(s);
         let counts = s.iter().filter(|q| q.is_finite()).all(|q| q.fract() == 0.0);
         let far = Reference::channel(s) != 0.0 || (counts && mean.abs() > OFF_CENTRE * range);
-        if varies(s) && far { mean } else { 0.0 }
+        if varies(range) && far { mean } else { 0.0 }
     };
     // An electrical channel off centre: a load's voltage or current has no steady part (the
     // circuit's capacitance or inductance blocks it), so its mean is the sensor's offset.
     let electrical = |s: &[f64]| {
         let (mean, range) = stats(s);
-        if varies(s) && mean.abs() > OFF_CENTRE * range {
+        if varies(range) && mean.abs() > OFF_CENTRE * range {
             mean
         } else {
             0.0
@@ -1361,10 +1359,29 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
 /// data they are far wider than what the record's simulation fit allows (true models at 1 %
 /// with V 1.7 of those standard errors from 0).
 pub fn widen_unbacked(report: &mut SystemReport, streaming: &[Vec<f64>]) {
+    widen_to_other(
+        report,
+        |e, j, _| streaming.get(e)?.get(j).copied(),
+        "widened to the distance between the refined and the streaming coefficients where that is larger: refined, the model predicts the held-out half no better than the streaming one, so the refinement's own ± do not bound the coefficients",
+    );
+}
+
+/// Each term's ± becomes the larger of its own and its distance to another estimate of it,
+/// `other(equation, index, term)` (`None`: none); when any grew, the report's sentence on its
+/// standard errors gains `why`. The widenings of [`widen_unbacked`], [`widen_by_half`] and
+/// [`widen_by_x_integration`].
+fn widen_to_other(
+    report: &mut SystemReport,
+    other: impl Fn(usize, usize, &crate::identify::TermReport) -> Option<f64>,
+    why: &str,
+) {
     let mut widened = false;
-    for (e, before) in report.equations.iter_mut().zip(streaming) {
-        for (t, &c0) in e.terms.iter_mut().zip(before) {
-            let spread = (t.coef - c0).abs();
+    for (k, e) in report.equations.iter_mut().enumerate() {
+        for (j, t) in e.terms.iter_mut().enumerate() {
+            let Some(c) = other(k, j, t) else {
+                continue;
+            };
+            let spread = (t.coef - c).abs();
             if spread.is_finite() && t.se.is_none_or(|s| spread > s) {
                 widened = true;
                 t.se = Some(spread);
@@ -1372,10 +1389,7 @@ pub fn widen_unbacked(report: &mut SystemReport, streaming: &[Vec<f64>]) {
         }
     }
     if widened {
-        report.standard_errors = format!(
-            "{}; widened to the distance between the refined and the streaming coefficients where that is larger: refined, the model predicts the held-out half no better than the streaming one, so the refinement's own ± do not bound the coefficients",
-            report.standard_errors
-        );
+        report.standard_errors = format!("{}; {why}", report.standard_errors);
     }
 }
 
@@ -1401,28 +1415,15 @@ pub fn widen_by_x_integration(
     else {
         return;
     };
-    let mut widened = false;
-    for (e, eq) in report.equations.iter_mut().zip(&alt.sim.equations) {
-        for t in e.terms.iter_mut() {
-            let Some(term) = simulate::SimTerm::parse(&t.term, &sim.electrical) else {
-                continue;
-            };
-            let Some((_, c)) = eq.iter().find(|(s, _)| *s == term) else {
-                continue;
-            };
-            let spread = (t.coef - c).abs();
-            if spread.is_finite() && t.se.is_none_or(|s| spread > s) {
-                widened = true;
-                t.se = Some(spread);
-            }
-        }
-    }
-    if widened {
-        report.standard_errors = format!(
-            "{}; widened to the distance to the model refined without x among the states followed where that is larger: x is v integrated, its drift removal an estimate",
-            report.standard_errors
-        );
-    }
+    widen_to_other(
+        report,
+        |e, _, t| {
+            let term = simulate::SimTerm::parse(&t.term, &sim.electrical)?;
+            let eq = alt.sim.equations.get(e)?;
+            eq.iter().find(|(s, _)| *s == term).map(|(_, c)| *c)
+        },
+        "widened to the distance to the model refined without x among the states followed where that is larger: x is v integrated, its drift removal an estimate",
+    );
 }
 
 /// The refined model's ± made honest against the record itself: each term's ± becomes the
@@ -1435,20 +1436,9 @@ pub fn widen_by_x_integration(
 /// seeds 1–6: χ 0.0143–0.0182, each ± 0.0010), and a split the record does not determine
 /// moves by far more than its ±.
 pub fn widen_by_half(report: &mut SystemReport, first_half: &[Vec<f64>]) {
-    let mut widened = false;
-    for (e, half) in report.equations.iter_mut().zip(first_half) {
-        for (t, &c1) in e.terms.iter_mut().zip(half) {
-            let spread = (t.coef - c1).abs();
-            if spread.is_finite() && t.se.is_none_or(|s| spread > s) {
-                widened = true;
-                t.se = Some(spread);
-            }
-        }
-    }
-    if widened {
-        report.standard_errors = format!(
-            "{}; widened to the distance between the coefficients refined on the whole record and on its first half where that is larger",
-            report.standard_errors
-        );
-    }
+    widen_to_other(
+        report,
+        |e, j, _| first_half.get(e)?.get(j).copied(),
+        "widened to the distance between the coefficients refined on the whole record and on its first half where that is larger",
+    );
 }
