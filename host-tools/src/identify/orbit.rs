@@ -147,6 +147,59 @@ pub fn unrecorded_forcing(
     ))
 }
 
+/// How far (a factor either way) the RMS of a free run's last half may be from x's before
+/// the run is on another orbit than the recorded one: a model that reaches the recorded orbit
+/// matches its RMS to its coefficients' error, whatever its phase; a forced run in a well
+/// beside a cross-well orbit, or on the other branch of a hardening resonance, is off by
+/// several times.
+pub const ORBIT_RMS_FACTOR: f64 = 2.0;
+
+/// Whether x repeats one steady oscillation (as [`orbit_not_followed`]) while the printed
+/// model, run over the whole record from the state fitted at its start, settles on another
+/// orbit (its last half's RMS off x's by more than [`ORBIT_RMS_FACTOR`]) or diverges: the
+/// harvester reached the recorded orbit from there, so its equation does too. Fresh hostile
+/// seed 20925 (a hardening single well forced hard through u, 5 % noise, 10-bit ADC, 9.3
+/// samples a period at the top of its band): `+1491 x − 4.16e8 x³ − 2.18e4 x²·v − 9.07e4 x·v²
+/// + 0.0169 u` (a double well entrained by a weak forcing; truth −1029 x − 4.0 v − 2.6e8 x³ +
+/// u) followed the held-out half from a state fitted there (6.5 %) but from the record's
+/// start fell into a well. The sentence, or `None`.
+pub fn orbit_not_reached(
+    recording: &Recording,
+    check: &crate::identify::refine::Check,
+) -> Option<String> {
+    let (simulated, recorded) = check.from_start?;
+    if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+        eprintln!(
+            "lssi: orbit from the start: run RMS {simulated:.4e}, x's {recorded:.4e}; cycles {:?}",
+            cycles(recording)
+        );
+    }
+    let ratio = simulated / recorded;
+    if (1.0 / ORBIT_RMS_FACTOR..=ORBIT_RMS_FACTOR).contains(&ratio) {
+        return None;
+    }
+    if !simulated.is_finite() {
+        // Whatever the record does (a transient, a chaotic motion), the harvester stayed
+        // within its range from that start, and so does its equation.
+        return Some(format!(
+            "the model's free run over the record from the state x shows at its start diverges (it goes {} of x's ranges beyond them), where the harvester stayed within them: this model is not its equation",
+            crate::identify::refine::ESCAPE_RANGES
+        ));
+    }
+    let (count, hz, spread) = cycles(recording)?;
+    (spread <= MAX_CYCLE_SPREAD).then(|| {
+        let run = if simulated.is_finite() {
+            format!("settles on an oscillation of RMS {simulated:.4e} where x's is {recorded:.4e}")
+        } else {
+            "diverges".to_owned()
+        };
+        format!(
+            "x repeats one steady oscillation ({count} cycles at {hz:.4} Hz, their RMS steady to {:.2} %) but the model's free run over the record from the state x shows at its start {run}: the harvester reached the orbit it was recorded on from there, so this model, which holds another, is not its equation",
+            100.0 * spread
+        )
+    })
+}
+
 /// A free run's NRMSE (%) beyond which it is not the recorded steady orbit with its phase
 /// drifted: two sinusoids of one amplitude out of phase differ by √2 of it (141 %), so a model
 /// that settles onto the recorded orbit stays under this however its phase drifts.

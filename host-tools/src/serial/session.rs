@@ -188,9 +188,20 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
     } else {
         None
     };
-    let recording = match &quantised {
-        Some(q) => q.recording.clone(),
-        None => recording,
+    // f32 samples travel less the reference `lssi identify` takes off them (the mean of the
+    // first rows of a channel far from zero: raw ADC counts, an offset 10⁴ amplitudes away),
+    // as a device can take it off its own first rows; the device's model is in those
+    // coordinates and is reported back in the recording's, as `identify --f32` reports it.
+    // The compact encoding's quantisation takes its own offset out.
+    let (recording, reference) = match &quantised {
+        Some(q) => (q.recording.clone(), identify::Reference::default()),
+        None => {
+            let reference = identify::Reference::of(&recording);
+            (
+                reference.shifted(&recording).unwrap_or(recording),
+                reference,
+            )
+        }
     };
     let (config, estimated) = identify::configure(&recording, &setup.options)?;
     let mut wire = wire_config(&recording, &config)?;
@@ -213,6 +224,10 @@ pub fn replay(setup: &Setup) -> Result<ReplayReport, CliError> {
             duty: setup.duty,
         };
         replay_over_with(link, &recording, &config, estimated, mode)
+    })
+    .map(|mut replayed| {
+        reference.restore(&mut replayed.report);
+        replayed
     })
 }
 
@@ -247,6 +262,12 @@ pub fn replay_system(
             decimate_system(data, k)
         }
         None => data.clone(),
+    };
+    // Channels far from zero travel less their references, as `lssi identify` identifies
+    // them ([`crate::system::references`]); the report names them as its report does.
+    let (data, reference) = match crate::system::references(&data) {
+        Some((shifted, reference)) => (shifted, Some(reference)),
+        None => (data, None),
     };
     let (config, estimated) = crate::system::configure(&data, &setup.options, coupling_order)?;
     let mut wire = lssi_device::system::system_config_to_wire(&config)
@@ -293,6 +314,7 @@ pub fn replay_system(
                 coil_ohms,
             ));
         }
+        replayed.report.reference = reference;
         replayed
     })
 }

@@ -253,3 +253,64 @@ fn the_proposed_row_rate_is_the_identified_rate_averaged_down() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("nor `proposed`"), "{err}");
 }
+
+/// The shipped monostable harvester's x written in a channel's far-from-zero forms (raw
+/// 16-bit ADC counts about mid-scale, an offset of 10⁴ amplitudes): replay sends it less the reference `lssi identify`
+/// takes off (before anything meets f32), and reports the device's model back in the
+/// recording's coordinates: `identify --f32 --no-refine` to the bit. Sent as it was, the
+/// device kept a few bits of the motion and printed another model.
+#[test]
+fn a_channel_far_from_zero_replays_as_identify_f32_takes_it() {
+    require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/eveh-monostable.csv");
+    let text = std::fs::read_to_string(shipped).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let x_column = header.split(',').position(|h| h.trim() == "x").unwrap();
+    let rows: Vec<Vec<String>> = lines
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| l.split(',').map(|v| v.trim().to_owned()).collect())
+        .collect();
+    let amplitude = rows
+        .iter()
+        .map(|r| r[x_column].parse::<f64>().unwrap().abs())
+        .fold(0.0, f64::max);
+    for (name, shift) in [("counts", None), ("far", Some(1e4 * amplitude))] {
+        let mut out = format!("{header}\n");
+        for r in &rows {
+            let x: f64 = r[x_column].parse().unwrap();
+            let mut r = r.clone();
+            r[x_column] = match shift {
+                Some(s) => format!("{}", x + s),
+                None => format!("{}", (32768.0 + 3000.0 * x / amplitude).round()),
+            };
+            out.push_str(&r.join(","));
+            out.push('\n');
+        }
+        let file = dir.path().join(format!("{name}.csv"));
+        std::fs::write(&file, out).unwrap();
+        let f = file.to_str().unwrap();
+        let identify = lssi(&["identify", "--f32", "--no-refine", "--json", f]);
+        assert!(
+            identify.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&identify.stderr)
+        );
+        let mut identify: serde_json::Value = serde_json::from_slice(&identify.stdout).unwrap();
+        identify.as_object_mut().unwrap().remove("warnings");
+        assert!(
+            identify["offsets"][0].as_f64().unwrap().abs() > 100.0 * amplitude,
+            "{name}: {identify}"
+        );
+        let replay = lssi(&["replay", "--json", "--baud", "4000000", f]);
+        assert!(
+            replay.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&replay.stderr)
+        );
+        let mut replay: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+        replay.as_object_mut().unwrap().remove("link");
+        assert_eq!(replay, identify, "{name}");
+    }
+}

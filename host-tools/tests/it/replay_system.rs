@@ -138,6 +138,63 @@ fn a_replayed_system_is_identify_f32_bit_for_bit() {
     }
 }
 
+/// A piezo harvester's x half a metre from zero and V 3 V off: replay sends the channels
+/// less the references `lssi identify` takes off them, and its report names them: the
+/// equations are `identify --f32 --no-refine`'s bit for bit (sent as they were, the device
+/// had x'' with a constant collinear with x).
+#[test]
+fn channels_off_zero_replay_as_identify_takes_them() {
+    crate::replay_cli::require_firmware_sim();
+    let dir = tempfile::tempdir().unwrap();
+    let file = generate(
+        dir.path(),
+        "p",
+        &["piezo", "--input", "--t-end", "6", "--seed", "3"],
+    );
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let names: Vec<&str> = header.split(',').collect();
+    let mut out = format!("{header}\n");
+    for line in lines.filter(|l| !l.trim().is_empty()) {
+        let row: Vec<String> = line
+            .split(',')
+            .zip(&names)
+            .map(|(v, name)| {
+                let v: f64 = v.trim().parse().unwrap();
+                match *name {
+                    "x" => format!("{}", v + 0.5),
+                    "V" => format!("{}", v + 3.0),
+                    _ => format!("{v}"),
+                }
+            })
+            .collect();
+        out.push_str(&row.join(","));
+        out.push('\n');
+    }
+    let shifted = dir.path().join("shifted.csv");
+    std::fs::write(&shifted, out).unwrap();
+    let f = shifted.to_str().unwrap();
+    let identify = identified(
+        &lssi(&["identify", "--f32", "--no-refine", "--json", f]),
+        "shifted",
+    );
+    let reference = &identify["reference"];
+    assert!(
+        (reference["x"].as_f64().unwrap() - 0.5).abs() < 0.01,
+        "{identify}"
+    );
+    assert!(
+        (reference["V"].as_f64().unwrap() - 3.0).abs() < 0.5,
+        "{identify}"
+    );
+    let replay = ok(
+        &lssi(&["replay", "--json", "--baud", "4000000", f]),
+        "shifted",
+    );
+    assert_same_system(&identify, replay, "shifted");
+}
+
 /// Every column averaged `k` rows at a time, then through the droop compensator
 /// `(1 + 2a)·y_r − a·(y_{r−1} + y_{r+1})`, a = 1/24 (t: the middle row's mean; the first and
 /// last rows dropped), written as the shortest decimal that reads back the same f64: what
