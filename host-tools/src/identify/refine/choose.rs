@@ -935,7 +935,22 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
 /// model with another orbit beside the recorded one is fitted onto it from a state the
 /// samples contradict (hostile seed 20925: x₀ 2.64e-3 fitted, 1.86e-3 recorded, noise 8e-5).
 fn run_from_recorded_start(model: &SimModel, data: &Data) -> Option<(f64, f64)> {
-    let n = data.len();
+    // Up to the record's first gap (samples left out: a stuck sensor, a burst, a dropped
+    // stretch): the simulation steps over a gap in one long step, which is no free run of the
+    // harvester (a bistable record with 1,000 stuck rows left out "diverged" there).
+    let mut steps: Vec<f64> = data.t.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.is_empty() {
+        return None;
+    }
+    let middle = steps.len() / 2;
+    let typical = *steps.select_nth_unstable_by(middle, f64::total_cmp).1;
+    let n = data
+        .t
+        .windows(2)
+        .position(|w| !(w[1] - w[0] <= 1.5 * typical))
+        .map_or(data.len(), |i| i + 1);
+    let whole = data;
+    let data = &whole.slice(0, n);
     let mean = crate::identify::stretch::mean(data.x);
     let rms = crate::identify::stretch::rms(data.x);
     let crossings = data
