@@ -113,7 +113,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))
                 .or_else(|| crate::identify::periodic::misses_periodic(recording, &check))
                 .or_else(|| crate::identify::orbit::orbit_not_followed(recording, &check))
-                .or_else(|| crate::identify::orbit::orbit_not_reached(recording, &check));
+                .or_else(|| crate::identify::orbit::orbit_not_reached(recording, &check))
+                .or_else(|| check.unsettled.clone());
             Some(Summary::of(&check, report.omega))
         }
         Refine::No(why) => {
