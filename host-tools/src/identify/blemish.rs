@@ -827,6 +827,12 @@ pub(crate) fn centred(s: &[f64], scan: &Scan) -> Vec<Option<f64>> {
 /// The value at `at` of the least-squares cubic through `points` (offset, value); `None` with
 /// fewer than five points or a singular fit.
 pub(crate) fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
+    cubic_fit_slope_at(points, at).map(|(value, _)| value)
+}
+
+/// The value and the slope at `at` of the least-squares cubic through `points` (offset,
+/// value); `None` as [`cubic_fit_at`].
+pub(crate) fn cubic_fit_slope_at(points: &[(f64, f64)], at: f64) -> Option<(f64, f64)> {
     if points.len() < 5 {
         return None;
     }
@@ -872,7 +878,9 @@ pub(crate) fn cubic_fit_at(points: &[(f64, f64)], at: f64) -> Option<f64> {
         coef[r] = (a[r][4] - tail) / a[r][r];
     }
     let phi = basis(at);
-    Some((0..4).map(|r| coef[r] * phi[r]).sum())
+    let z = (at - mean) / spread;
+    let slope = (coef[1] + 2.0 * coef[2] * z + 3.0 * coef[3] * z * z) / spread;
+    Some(((0..4).map(|r| coef[r] * phi[r]).sum(), slope))
 }
 
 /// The weights of the one-sided stencil: sᵢ predicted by the least-squares cubic through

@@ -155,8 +155,9 @@ pub fn unrecorded_forcing(
 pub const ORBIT_RMS_FACTOR: f64 = 2.0;
 
 /// Whether x repeats one steady oscillation (as [`orbit_not_followed`]) while the printed
-/// model, run over the whole record from the state fitted at its start, settles on another
-/// orbit (its last half's RMS off x's by more than [`ORBIT_RMS_FACTOR`]) or diverges: the
+/// model, run over the record from the state x shows at its start, settles on another orbit
+/// (its last half's RMS off x's by more than [`ORBIT_RMS_FACTOR`]), or, on any record,
+/// diverges: the
 /// harvester reached the recorded orbit from there, so its equation does too. Fresh hostile
 /// seed 20925 (a hardening single well forced hard through u, 5 % noise, 10-bit ADC, 9.3
 /// samples a period at the top of its band): `+1491 x − 4.16e8 x³ − 2.18e4 x²·v − 9.07e4 x·v²
@@ -188,13 +189,8 @@ pub fn orbit_not_reached(
     }
     let (count, hz, spread) = cycles(recording)?;
     (spread <= MAX_CYCLE_SPREAD).then(|| {
-        let run = if simulated.is_finite() {
-            format!("settles on an oscillation of RMS {simulated:.4e} where x's is {recorded:.4e}")
-        } else {
-            "diverges".to_owned()
-        };
         format!(
-            "x repeats one steady oscillation ({count} cycles at {hz:.4} Hz, their RMS steady to {:.2} %) but the model's free run over the record from the state x shows at its start {run}: the harvester reached the orbit it was recorded on from there, so this model, which holds another, is not its equation",
+            "x repeats one steady oscillation ({count} cycles at {hz:.4} Hz, their RMS steady to {:.2} %) but the model's free run over the record from the state x shows at its start settles on an oscillation of RMS {simulated:.4e} where x's is {recorded:.4e}: the harvester reached the orbit it was recorded on from there, so this model, which holds another, is not its equation",
             100.0 * spread
         )
     })

@@ -46,9 +46,11 @@ pub struct Check {
     /// The reported model's free run over the whole held-out half (one initial state fitted):
     /// long-range behaviour, which a chaotic record does not share with any model.
     pub free_run: Option<Fit>,
-    /// The reported model's free run over the whole record from the state x shows at its start: the RMS about its mean of the run's last half and of x over the same samples
+    /// The reported model's free run over the whole record from the state x shows at its
+    /// start: the RMS about its mean of the run's last half and of x over the same samples
     /// (the run's RMS infinite when it diverges). A model of the harvester reaches the orbit
-    /// the harvester was recorded on from where the harvester started ([`crate::identify::orbit::orbit_not_reached`]).
+    /// the harvester was recorded on from where it started
+    /// ([`crate::identify::orbit::orbit_not_reached`]).
     pub from_start: Option<(f64, f64)>,
     /// Samples per period at the top of x's band (under ~20: derivatives are biased).
     pub samples_per_period: Option<f64>,
@@ -932,6 +934,12 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
     check
 }
 
+/// The least move of a printed coefficient, as a fraction of it, that [`unsettled_term`]
+/// counts: on a clean record the printed ± are a numerical floor (hostile seeds 20073, 21157:
+/// an x·v² at 9–11 standard errors moved x and x³ by 10⁻⁶ of themselves, beyond two of
+/// theirs), and a move of a per cent is below anything a user reads as another model.
+pub const UNSETTLED_MOVE: f64 = 0.01;
+
 /// Whether a support the refinement tried holds every printed term and more, each term it
 /// adds resolved beyond `bar` standard errors on the first half, and moves a printed
 /// coefficient by more than two of its printed standard errors: the record resolves a term
@@ -941,12 +949,6 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
 /// 10-bit ADC): `(−13,431 ± 46) x − 22.4 v + 3.12 cos(284.3t)` with exit 0; x³ refined at 13.4
 /// standard errors, and with it x is −12,947 (truth −12,930, x³ −7.87e10). The sentence, or
 /// `None`.
-/// The least move of a printed coefficient, as a fraction of it, that [`unsettled_term`]
-/// counts: on a clean record the printed ± are a numerical floor (hostile seeds 20073, 21157:
-/// an x·v² at 9–11 standard errors moved x and x³ by 10⁻⁶ of themselves, beyond two of
-/// theirs), and a move of a per cent is below anything a user reads as another model.
-pub const UNSETTLED_MOVE: f64 = 0.01;
-
 fn unsettled_term(check: &Check, bar: f64) -> Option<String> {
     let omega = check.model.omega;
     let printed: Vec<(Term, f64, f64)> = check
@@ -1033,8 +1035,7 @@ fn run_from_recorded_start(model: &SimModel, data: &Data) -> Option<(f64, f64)> 
         .windows(2)
         .position(|w| !(w[1] - w[0] <= 1.5 * typical))
         .map_or(data.len(), |i| i + 1);
-    let whole = data;
-    let data = &whole.slice(0, n);
+    let data = &data.slice(0, n);
     let mean = crate::identify::stretch::mean(data.x);
     let rms = crate::identify::stretch::rms(data.x);
     let crossings = data
@@ -1047,24 +1048,8 @@ fn run_from_recorded_start(model: &SimModel, data: &Data) -> Option<(f64, f64)> 
     }
     let m = (n / crossings / 4).clamp(5, 64).min(n);
     let t0 = data.t[0];
-    // Least squares for x ≈ a + b τ + c τ² + d τ³ over the first m samples (τ = t − t0,
-    // scaled by the window's span for conditioning).
-    let span = (data.t[m - 1] - t0).max(f64::MIN_POSITIVE);
-    let mut ata = [[0.0f64; 4]; 4];
-    let mut atb = [0.0f64; 4];
-    for i in 0..m {
-        let s = (data.t[i] - t0) / span;
-        let row = [1.0, s, s * s, s * s * s];
-        for r in 0..4 {
-            atb[r] += row[r] * data.x[i];
-            for c in 0..4 {
-                ata[r][c] += row[r] * row[c];
-            }
-        }
-    }
-    let a = nalgebra::Matrix4::from_fn(|r, c| ata[r][c]);
-    let coef = a.lu().solve(&nalgebra::Vector4::from_column_slice(&atb))?;
-    let start = (coef[0], coef[1] / span);
+    let first: Vec<(f64, f64)> = (0..m).map(|i| (data.t[i] - t0, data.x[i])).collect();
+    let start = crate::identify::blemish::cubic_fit_slope_at(&first, 0.0)?;
     if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
         eprintln!("lssi: recorded start {start:?} (a cubic over {m} samples)");
     }

@@ -472,16 +472,10 @@ fn refit_from_other_starts(
 /// A free run of `model` over all of `data` from the initial state fitted on its first
 /// `segment` samples (fitting one state to a long free run lands in local minima).
 pub fn free_run_after_fitted_start(model: &SimModel, data: &Data, segment: usize) -> Option<Fit> {
-    free_run_fit(model, data, fitted_start(model, data, segment)?)
-}
-
-/// The initial state of `model` fitted on `data`'s first `segment` samples (recording
-/// coordinates).
-pub fn fitted_start(model: &SimModel, data: &Data, segment: usize) -> Option<(f64, f64)> {
     let (shape, c) = Shape::on(model, data);
     let first = [(0, segment.min(data.len()))];
     let start = least_squares(&shape, &c, data, &first, true, 20, None)?;
-    start.states.first().copied()
+    free_run_fit(model, data, *start.states.first()?)
 }
 
 /// A free run of `model` over `data`'s time grid (driven by its `u`) from `start` (recording
