@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Everything CI needs for the firmware, on a fresh Debian/Ubuntu machine:
-#   1. qemu-system-arm (apt) and defmt-print (cargo install) when missing;
+#   1. qemu-system-arm (apt) when missing, and `lssi defmt` as defmt-print when that is missing;
 #   2. the firmware's release ELF (crates/lssi-firmware, thumbv7em-none-eabihf);
 #   3. its smoke test under QEMU (crates/lssi-firmware/scripts/qemu-check.sh);
 #   4. the end-to-end tests: the bundled recording replayed through the firmware under QEMU
@@ -29,7 +29,18 @@ if ! command -v qemu-system-arm >/dev/null; then
 fi
 qemu-system-arm --version | head -1
 if ! command -v defmt-print >/dev/null; then
-    cargo install defmt-print --locked
+    # `lssi defmt -e ELF` decodes as `defmt-print -e ELF` does, with the same defmt-decoder
+    # crate, and is built already: it stands in for defmt-print on PATH (a `cargo install
+    # defmt-print` compiles for about two minutes on a fresh machine).
+    if [[ ! -x target/release/lssi ]]; then
+        cargo build --release --locked -q -p lssi-host --bin lssi
+    fi
+    shim=$(mktemp -d)
+    trap 'rm -rf "$shim"' EXIT
+    printf '#!/bin/sh\nexec "%s" defmt "$@"\n' "$root/target/release/lssi" >"$shim/defmt-print"
+    chmod +x "$shim/defmt-print"
+    export PATH="$shim:$PATH"
+    echo "defmt-print: lssi defmt ($root/target/release/lssi)"
 fi
 rustup target add thumbv7em-none-eabihf >/dev/null
 rustup component add llvm-tools >/dev/null
@@ -53,7 +64,7 @@ crates/lssi-firmware/scripts/qemu-check.sh
 step "replay through the QEMU firmware == lssi identify --f32 --no-refine; the standalone instrument at 10 kHz"
 LSSI_FIRMWARE_ELF="$elf" LSSI_SYSTEM_FIRMWARE_ELF="$elf-system" \
     LSSI_STANDALONE_SYSTEM_ELF="$standalone-system" \
-    cargo test --locked --release -p lssi-tests --test e2e -- qemu --include-ignored --nocapture
+    cargo test --locked --release --workspace --test e2e -- qemu --include-ignored --nocapture
 
 if [[ -z ${LSSI_CI_SKIP_BENCH:-} ]]; then
     step "identifier cost, size and stack on the Cortex-M4F"

@@ -21,5 +21,10 @@ if ! command -v qemu-system-arm >/dev/null; then
         echo "qemu-system-arm is missing and there is no apt-get: install it to run the firmware (lssi monitor --qemu, the QEMU tests)." >&2
     fi
 fi
-# The Python package in .venv (maturin, numpy, pandas, dask, pytest; the `lssi` command too).
+# The `lssi` command (target/release/lssi) and the tests, in one build: the tests' dependencies
+# switch features on in crates the command shares with them (rand, lssi-testkit, ...), so
+# `cargo build -p lssi-host` alone would compile those crates, and the host library, a second
+# time for README's test command (`cargo test --workspace --release`).
+cargo test --workspace --release --locked --no-run
+# The Python package in .venv (maturin, numpy, pandas, dask, pytest).
 bash "$root/scripts/setup-python.sh"

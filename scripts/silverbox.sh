@@ -12,8 +12,12 @@ if [[ ! -f $data ]]; then
 fi
 lssi=${LSSI:-}
 if [[ -z $lssi ]]; then
-    (cd "$root" && cargo build --release --locked -q -p lssi-host --bin lssi)
+    # The command scripts/setup.sh built (with the tests, which a `cargo build -p lssi-host`
+    # would not share); built here only when it is missing.
     lssi="$root/target/release/lssi"
+    if [[ ! -x $lssi ]]; then
+        (cd "$root" && cargo build --release --locked -q -p lssi-host --bin lssi)
+    fi
 fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -5,7 +5,9 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lssi_host::commands::{bench, generate, identify, info, log, monitor, plot, replay, simulate};
+use lssi_host::commands::{
+    bench, defmt, generate, identify, info, log, monitor, plot, replay, simulate,
+};
 use lssi_host::error::CliError;
 
 /// Streaming sparse identification (LSSI) of vibration energy harvesters: host tools.
@@ -48,6 +50,9 @@ enum Command {
     Plot(plot::PlotArgs),
     /// Simulate a model from `lssi identify --json` over a recording's time grid and input.
     Simulate(simulate::SimulateArgs),
+    /// Decode a device's defmt log (bytes on standard input) with its firmware's ELF, as
+    /// `defmt-print -e ELF` does.
+    Defmt(defmt::DefmtArgs),
 }
 
 fn run(cli: &Cli) -> Result<(), CliError> {
@@ -61,6 +66,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Monitor(args) => monitor::run(args),
         Command::Plot(args) => plot::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Defmt(args) => defmt::run(args),
     }
 }
 

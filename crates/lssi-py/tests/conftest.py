@@ -12,9 +12,9 @@ DATA = sorted((ROOT / "data").glob("*.csv"))
 
 @pytest.fixture(scope="session")
 def cli():
-    """The `lssi` command (scripts/setup-python.sh builds it)."""
+    """The `lssi` command (scripts/setup.sh builds it, with the Rust tests' features)."""
     if not LSSI.exists():
-        subprocess.run(["cargo", "build", "--release", "--locked", "-p", "lssi-host", "--bin", "lssi"],
+        subprocess.run(["cargo", "test", "--workspace", "--release", "--locked", "--no-run"],
                        cwd=ROOT, check=True)
 
     def run(*args):

@@ -47,7 +47,8 @@ def fitted(piezo):
 
 
 # -- the same system as from the file -------------------------------------------------------
-# Every recording in f64; f32 on three of them (CI's time: each case identifies three times;
+# Every recording in f64; f32 on two of them (CI's time: each case identifies three times, and
+# the electromagnetic bistable record of v and i in f32 took 34 s, the longest Python test;
 # the bistable records are 8-10 s, each as the command decides it at 20 s: the electromagnetic
 # one withheld, the piezo one identified; its refinement took 45 s a run at 20 s).
 @pytest.mark.parametrize(
@@ -63,7 +64,6 @@ def fitted(piezo):
         ("electromagnetic", "monostable", "x", ["--coil", "negligible", "--delta", "0.01"], False),
         ("electromagnetic", "monostable", "x", ["--electrical", "i"], False),
         ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5", "--t-end", "8"], False),
-        ("electromagnetic", "bistable", "v", ["--electrical", "i", "--delta", "0.01", "--seed", "5", "--t-end", "8"], True),
     ],
 )
 def test_fit_on_arrays_equals_identify_on_the_file(cli, tmp_path, kind, wells, observe, extra, f32):

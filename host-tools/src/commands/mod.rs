@@ -4,6 +4,7 @@
 //! `lssi plot` and `lssi replay` flatten into their own.
 
 pub mod bench;
+pub mod defmt;
 pub mod generate;
 pub mod identifier;
 pub mod identify;

@@ -393,3 +393,26 @@ fn the_drift_of_a_duty_cycle_is_printed_in_text_json_and_csv() {
     assert!(windows[2].ends_with(",3"), "{csv}");
     assert!(!csv.contains(",health,drift,"), "{csv}");
 }
+
+/// `lssi defmt -e ELF` (defmt-print's stand-in in scripts/ci-qemu.sh; its decoding is checked
+/// there, on the firmware's own log under QEMU): an ELF it cannot read, or one without defmt
+/// tables, is one sentence naming the file, exit 2, before reading any input.
+#[test]
+fn defmt_names_an_elf_it_cannot_use() {
+    let out = lssi(&["defmt", "-e", "/nonexistent/fw.elf"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.starts_with("lssi: /nonexistent/fw.elf: cannot read the firmware ELF"),
+        "{stderr}"
+    );
+    let host = env!("CARGO_BIN_EXE_lssi");
+    let out = lssi(&["defmt", "--elf", host]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("the ELF has no defmt tables") && stderr.contains(host),
+        "{stderr}"
+    );
+    assert!(out.stdout.is_empty());
+}
