@@ -449,7 +449,8 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
         && tau >= MIN_TAU
         && total >= MIN_DRIFT * low
         && total >= MIN_RESOLUTIONS * resolution
-        && late >= 0.5 * MIN_DRIFT * late_low;
+        && late >= 0.5 * MIN_DRIFT * late_low
+        && keeps_moving(&measured, &inliers, slope);
     if debug {
         eprintln!(
             "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, tau {tau:.2}, drifts {drifts}",
@@ -466,6 +467,35 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
         segments,
     })
 }
+
+/// Whether the last third of the kept lines (three at least) still moves at the drift's pace
+/// (at least [`TAIL_PACE`] of its slope, the same way): a sweep moves to its end, where a
+/// hardening single well's ringdown into its forced response falls steeply and then stays at
+/// Ω (gen seed 4242: 44.6, 40.4, 37.0, 35.8, 35.7, 35.9, 21.5, 21.4, 21.4 rad/s, a drift of
+/// −2.9 rad/s a segment that its last three lines, 0.1 rad/s apart, do not follow; its
+/// 7.1 rad/s resolution width kept every line within the straight drift's tolerance). The
+/// kept lines, not the segments: a sweep's last segments may hold a harmonic instead (gen
+/// seed 23's 35 → 18 rad/s sweep: two lines at 40.9 rad/s, left out of the drift).
+fn keeps_moving(measured: &[(usize, f64)], inliers: &[usize], slope: f64) -> bool {
+    let kept: Vec<(usize, f64)> = measured
+        .iter()
+        .filter(|(i, _)| inliers.contains(i))
+        .copied()
+        .collect();
+    let tail = &kept[kept.len().saturating_sub(kept.len().div_ceil(3).max(3))..];
+    let (Some(&(a, la)), Some(&(b, lb))) = (tail.first(), tail.last()) else {
+        return false;
+    };
+    if tail.len() < 3 {
+        return false;
+    }
+    let pace = (lb - la) / (b - a) as f64;
+    pace * slope.signum() >= TAIL_PACE * slope.abs()
+}
+
+/// The share of the drift's slope the lines of the record's last third must keep
+/// ([`keeps_moving`]).
+pub const TAIL_PACE: f64 = 0.5;
 
 /// Kendall's τ of `values` against their order: (concordant − discordant) / pairs, 0 for
 /// fewer than two.
@@ -580,6 +610,26 @@ fn line_share(power: f64, y: &[f64], window: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sweep's last third moves at its drift's pace; gen seed 4242's hardening ringdown
+    /// into its forced response (monostable, --amplitude 0.5 --rate 300 --t-end 8 --delta
+    /// 0.03) falls, then stays at Ω = 21.4 rad/s.
+    #[test]
+    fn a_ringdown_that_settles_at_omega_does_not_keep_moving() {
+        let indexed =
+            |lines: &[f64]| -> Vec<(usize, f64)> { lines.iter().copied().enumerate().collect() };
+        let all = |n: usize| -> Vec<usize> { (0..n).collect() };
+        let sweep = indexed(&[10.6, 12.1, 13.4, 15.3, 16.8, 18.2, 20.1, 21.4, 23.3]);
+        assert!(keeps_moving(&sweep, &all(9), 1.6));
+        let settled = indexed(&[44.6, 40.4, 37.0, 35.8, 35.7, 35.9, 21.5, 21.4, 21.4]);
+        assert!(!keeps_moving(&settled, &all(9), -2.9));
+        // Lines at a harmonic in the last segments, left out of the drift: the kept ones count.
+        let harmonic = indexed(&[
+            34.3, 32.9, 31.5, 30.0, 28.6, 27.2, 25.8, 24.4, 23.0, 21.5, 40.9, 40.9,
+        ]);
+        assert!(keeps_moving(&harmonic, &all(10), -1.42));
+        assert!(!keeps_moving(&harmonic[..2], &all(2), -1.42));
+    }
 
     /// A sweep's segment lines move one way; hostile seed 20733's (a weakly forced bistable
     /// beam's beating transient, 0.94 s segments whose resolution width is 6.7 rad/s) wander
