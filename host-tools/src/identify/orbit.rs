@@ -157,13 +157,12 @@ pub const ORBIT_RMS_FACTOR: f64 = 2.0;
 /// Whether x repeats one steady oscillation (as [`orbit_not_followed`]) while the printed
 /// model, run over the record from the state x shows at its start, settles on another orbit
 /// (its last half's RMS off x's by more than [`ORBIT_RMS_FACTOR`]), or, on any record,
-/// diverges: the
-/// harvester reached the recorded orbit from there, so its equation does too. Fresh hostile
-/// seed 20925 (a hardening single well forced hard through u, 5 % noise, 10-bit ADC, 9.3
-/// samples a period at the top of its band): `+1491 x − 4.16e8 x³ − 2.18e4 x²·v − 9.07e4 x·v²
-/// + 0.0169 u` (a double well entrained by a weak forcing; truth −1029 x − 4.0 v − 2.6e8 x³ +
-/// u) followed the held-out half from a state fitted there (6.5 %) but from the record's
-/// start fell into a well. The sentence, or `None`.
+/// diverges: the harvester reached the recorded orbit from there, so its equation does too.
+/// Fresh hostile seed 20925 (a hardening single well forced hard through u, 5 % noise, 10-bit
+/// ADC, 9.3 samples a period at the top of its band): `+1491 x − 4.16e8 x³ − 2.18e4 x²·v −
+/// 9.07e4 x·v² + 0.0169 u` (a double well entrained by a weak forcing; truth −1029 x − 4.0 v −
+/// 2.6e8 x³ + u) followed the held-out half from a state fitted there (6.5 %) but from the
+/// record's start fell into a well. The sentence, or `None`.
 pub fn orbit_not_reached(
     recording: &Recording,
     check: &crate::identify::refine::Check,

@@ -439,18 +439,19 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
             (lo.min(l), hi.max(l))
         });
     let late = late_high - late_low;
-    let kept: Vec<f64> = measured
+    let kept: Vec<(usize, f64)> = measured
         .iter()
         .filter(|(i, _)| inliers.contains(i))
-        .map(|&(_, l)| l)
+        .copied()
         .collect();
-    let tau = kendall_tau(&kept) * slope.signum();
+    let values: Vec<f64> = kept.iter().map(|&(_, l)| l).collect();
+    let tau = kendall_tau(&values) * slope.signum();
     let drifts = low > 0.0
         && tau >= MIN_TAU
         && total >= MIN_DRIFT * low
         && total >= MIN_RESOLUTIONS * resolution
         && late >= 0.5 * MIN_DRIFT * late_low
-        && keeps_moving(&measured, &inliers, slope);
+        && keeps_moving(&kept, slope);
     if debug {
         eprintln!(
             "lssi: sweep: {first:.3} -> {last:.3} rad/s, {} inliers, spans {spans}, tau {tau:.2}, drifts {drifts}",
@@ -468,27 +469,20 @@ fn drift(t: &[f64], x: &[f64], segments: usize) -> Option<Sweep> {
     })
 }
 
-/// Whether the last third of the kept lines (three at least) still moves at the drift's pace
-/// (at least [`TAIL_PACE`] of its slope, the same way): a sweep moves to its end, where a
-/// hardening single well's ringdown into its forced response falls steeply and then stays at
-/// Ω (gen seed 4242: 44.6, 40.4, 37.0, 35.8, 35.7, 35.9, 21.5, 21.4, 21.4 rad/s, a drift of
-/// −2.9 rad/s a segment that its last three lines, 0.1 rad/s apart, do not follow; its
-/// 7.1 rad/s resolution width kept every line within the straight drift's tolerance). The
+/// Whether the last third of the kept lines (segment, rad/s; three at least) still moves at
+/// the drift's pace (at least [`TAIL_PACE`] of its slope, the same way): a sweep moves to its
+/// end, where a hardening single well's ringdown into its forced response falls steeply and
+/// then stays at Ω (gen seed 4242: 44.6, 40.4, 37.0, 35.8, 35.7, 35.9, 21.5, 21.4, 21.4 rad/s,
+/// a drift of −2.9 rad/s a segment that its last three lines, 0.1 rad/s apart, do not follow;
+/// its 7.1 rad/s resolution width kept every line within the straight drift's tolerance). The
 /// kept lines, not the segments: a sweep's last segments may hold a harmonic instead (gen
 /// seed 23's 35 → 18 rad/s sweep: two lines at 40.9 rad/s, left out of the drift).
-fn keeps_moving(measured: &[(usize, f64)], inliers: &[usize], slope: f64) -> bool {
-    let kept: Vec<(usize, f64)> = measured
-        .iter()
-        .filter(|(i, _)| inliers.contains(i))
-        .copied()
-        .collect();
+fn keeps_moving(kept: &[(usize, f64)], slope: f64) -> bool {
     let tail = &kept[kept.len().saturating_sub(kept.len().div_ceil(3).max(3))..];
-    let (Some(&(a, la)), Some(&(b, lb))) = (tail.first(), tail.last()) else {
-        return false;
-    };
     if tail.len() < 3 {
         return false;
     }
+    let ((a, la), (b, lb)) = (tail[0], tail[tail.len() - 1]);
     let pace = (lb - la) / (b - a) as f64;
     pace * slope.signum() >= TAIL_PACE * slope.abs()
 }
@@ -618,17 +612,17 @@ mod tests {
     fn a_ringdown_that_settles_at_omega_does_not_keep_moving() {
         let indexed =
             |lines: &[f64]| -> Vec<(usize, f64)> { lines.iter().copied().enumerate().collect() };
-        let all = |n: usize| -> Vec<usize> { (0..n).collect() };
         let sweep = indexed(&[10.6, 12.1, 13.4, 15.3, 16.8, 18.2, 20.1, 21.4, 23.3]);
-        assert!(keeps_moving(&sweep, &all(9), 1.6));
+        assert!(keeps_moving(&sweep, 1.6));
         let settled = indexed(&[44.6, 40.4, 37.0, 35.8, 35.7, 35.9, 21.5, 21.4, 21.4]);
-        assert!(!keeps_moving(&settled, &all(9), -2.9));
-        // Lines at a harmonic in the last segments, left out of the drift: the kept ones count.
+        assert!(!keeps_moving(&settled, -2.9));
+        // Lines at a harmonic in the last segments (10 and 11), left out of the drift: the kept
+        // ones count.
         let harmonic = indexed(&[
             34.3, 32.9, 31.5, 30.0, 28.6, 27.2, 25.8, 24.4, 23.0, 21.5, 40.9, 40.9,
         ]);
-        assert!(keeps_moving(&harmonic, &all(10), -1.42));
-        assert!(!keeps_moving(&harmonic[..2], &all(2), -1.42));
+        assert!(keeps_moving(&harmonic[..10], -1.42));
+        assert!(!keeps_moving(&harmonic[..2], -1.42));
     }
 
     /// A sweep's segment lines move one way; hostile seed 20733's (a weakly forced bistable
