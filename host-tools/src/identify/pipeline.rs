@@ -72,6 +72,11 @@ pub fn warnings(report: &Report) -> Vec<String> {
 pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Outcome {
     let (mut report, quality) =
         quality::identify_checked(recording, options).map_err(|e| Failure::Error(e.to_string()))?;
+    // The streaming model (the device's) is fitted to u as recorded; the refinement and the
+    // checks after it simulate the model driven by u, and a steady forcing's u is its tone
+    // and harmonics there, without the sensor's noise (`periodic::steady_input`).
+    let steady = crate::identify::periodic::steady_input(recording);
+    let driven = steady.as_ref().unwrap_or(recording);
     // A streaming model that failed only the simulation checks (its free run, its
     // short-horizon simulation) is refined all the same, and the refined model judged on them
     // again: the gate judges the model it prints. At a few tens of samples a period the
@@ -81,11 +86,11 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
     if !quality.passed() {
         let rescued = (matches!(refine, Refine::Yes) && quality.only_simulation_failed())
             .then(|| {
-                let check = refine::refine_recording(recording, &report);
+                let check = refine::refine_recording(driven, &report);
                 let mut refined = report.clone();
                 refined.take_refined(&check);
                 (check.chosen == refine::Chosen::Refined
-                    && quality::simulation_passes(recording, &refined))
+                    && quality::simulation_passes(driven, &refined))
                 .then_some(check)
             })
             .flatten();
@@ -104,16 +109,16 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
     let mut contradicted = None;
     let refined = match refine {
         Refine::Yes => {
-            let check = early.unwrap_or_else(|| refine::refine_recording(recording, &report));
+            let check = early.unwrap_or_else(|| refine::refine_recording(driven, &report));
             report.take_refined(&check);
             // Judged on the refined path only: --no-refine prints the device's model as it
             // computes it.
-            contradicted = quality::prediction_misses(recording, &check)
+            contradicted = quality::prediction_misses(driven, &check)
                 .or_else(|| quality::unresolved_damping(&check))
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))
-                .or_else(|| crate::identify::periodic::misses_periodic(recording, &check))
-                .or_else(|| crate::identify::orbit::orbit_not_followed(recording, &check))
-                .or_else(|| crate::identify::orbit::orbit_not_reached(recording, &check))
+                .or_else(|| crate::identify::periodic::misses_periodic(driven, &check))
+                .or_else(|| crate::identify::orbit::orbit_not_followed(driven, &check))
+                .or_else(|| crate::identify::orbit::orbit_not_reached(driven, &check))
                 .or_else(|| check.unsettled.clone());
             Some(Summary::of(&check, report.omega))
         }
@@ -132,7 +137,7 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
         .or_else(|| quality::unresolved_term(&report))
         .or(contradicted)
         .or_else(|| quality::undamped_forced(&report))
-        .or_else(|| crate::identify::orbit::unforced_orbit(recording, &report))
+        .or_else(|| crate::identify::orbit::unforced_orbit(driven, &report))
     {
         let sentence = format!(
             "no deterministic dynamics found in {}: {why}.",

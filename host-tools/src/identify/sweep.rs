@@ -257,6 +257,22 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
         })
         .collect();
     let still = rows[steps].0;
+    if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
+        let window: Vec<f64> = (0..count).map(|i| hann(i, count)).collect();
+        for a in 1..2 * steps {
+            if rows[a].0 >= rows[a - 1].0 && rows[a].0 >= rows[a + 1].0 {
+                let k = (a as f64 - steps as f64) * k_step;
+                let (p, w) = rows[a];
+                eprintln!(
+                    "lssi: sweep: candidate k {k:.3} line {w:.3} ({:.3} -> {:.3}) gain {:.2} share {:.3}",
+                    w - 0.5 * k * duration,
+                    w + 0.5 * k * duration,
+                    p / still,
+                    line_share(p, &y, &window)
+                );
+            }
+        }
+    }
     let k_min = CHIRP_MIN_RESOLUTIONS * 2.0 * PI / (duration * duration);
     let (a, &(power, omega)) = rows
         .iter()
@@ -273,8 +289,9 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
     let k = (a as f64 - steps as f64) * k_step;
     if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
         eprintln!(
-            "lssi: sweep: dechirped line at {omega:.3} rad/s, rate {k:.3} rad/s², {:.2} times the record's strongest line",
-            power / still
+            "lssi: sweep: dechirped line at {omega:.3} rad/s, rate {k:.3} rad/s², {:.2} times the record's strongest line, mirror {:.3}",
+            power / still,
+            rows[2 * steps - a].0 / power
         );
     }
     if !(still > 0.0 && power >= CHIRP_GAIN * still) {
@@ -327,7 +344,38 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
         })
         .collect();
     let decays = q.windows(2).all(|w| w[1] < w[0]) && q[3] < 0.8 * q[0];
+    if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
+        let still_share = line_share(still, &y, &window);
+        eprintln!(
+            "lssi: sweep: envelope quarters {:.3e} {:.3e} {:.3e} {:.3e}; the still line at {:.3} holds {still_share:.3}; from {:.3} to {:.3}",
+            q[0],
+            q[1],
+            q[2],
+            q[3],
+            rows[steps].1,
+            omega - 0.5 * k * duration,
+            omega + 0.5 * k * duration
+        );
+    }
     if decays {
+        return None;
+    }
+    // A sweep's line stays a line the record resolves: above three of its resolution widths at
+    // both ends (the floor under which no line is taken above). A heavily damped single well
+    // over 5.5 periods (hostile 21145, 1.3 s) gathered its decay from x₀ and its forced line
+    // into a "chirp" from −4.2 to 43.5 rad/s; a bistable beam's slow transient in its well
+    // (hostile 21224) one from 8.5 to 1.8 rad/s, under its floor of 2.9.
+    let floor = 3.0 * 2.0 * PI / duration;
+    let within =
+        |omega: f64, k: f64| (omega - 0.5 * k * duration).min(omega + 0.5 * k * duration) >= floor;
+    if !within(omega, k) {
+        return None;
+    }
+    // Where segments of the record resolve the drift claimed, the lines of its second half
+    // must not move against it: a bistable beam's transient whose lines wander (hostile
+    // 20975: 7.0, 9.5, 5.4, then 7.2, 7.7, 8.8 rad/s over six segments) was dechirped into a
+    // fall from 11.5 to 5.0 rad/s.
+    if against_segments(t, x, omega - 0.5 * k * duration, omega + 0.5 * k * duration) {
         return None;
     }
     // The range: of the dechirped lines (local maxima in the rate) standing clear of their
@@ -371,6 +419,7 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
             k.abs() >= k_min && rows[a].0 >= rows[a - 1].0 && rows[a].0 >= rows[a + 1].0
         })
         .filter_map(gathered)
+        .filter(|&(_, omega, k)| within(omega, k))
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .unwrap_or((0.0, omega, k));
     Some(Sweep {
@@ -379,6 +428,41 @@ pub fn chirp(t: &[f64], x: &[f64]) -> Option<Sweep> {
         seconds: duration,
         segments: 0,
     })
+}
+
+/// Whether the lines of the second half of [`MIN_SEGMENTS`] segments, all within the band
+/// `from`..`to` (rad/s, the drift claimed over the record) or a resolution width of it, move
+/// steadily against the drift (each against the one before), where they resolve it (half the
+/// drift at least one of their resolution widths, and a line in each). The second half: a
+/// sweep's first segments may hold the transient from x₀ at the well's own frequency (a
+/// 23 → 33 rad/s sweep: 42.8, 37.7, 39.5, then 29.1, 30.9, 32.6 rad/s), its later ones a
+/// harmonic (a 9.6 → 44.6 rad/s sweep: 46.3, 49.0, 41.7 rad/s), neither of them a line that
+/// moves against the sweep in its band.
+fn against_segments(t: &[f64], x: &[f64], from: f64, to: f64) -> bool {
+    let Some((lines, seconds)) = segment_lines(t, x, MIN_SEGMENTS) else {
+        return false;
+    };
+    let resolution = 2.0 * std::f64::consts::PI / seconds;
+    let late: Vec<f64> = lines[MIN_SEGMENTS / 2..]
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
+    let change = to - from;
+    if 0.5 * change.abs() < resolution || late.len() < MIN_SEGMENTS - MIN_SEGMENTS / 2 {
+        return false;
+    }
+    let (low, high) = (from.min(to) - resolution, from.max(to) + resolution);
+    let in_band = late.iter().all(|l| (low..=high).contains(l));
+    let against = late
+        .windows(2)
+        .all(|w| (w[1] - w[0]) * change.signum() < 0.0);
+    if std::env::var_os("LSSI_SWEEP_DEBUG").is_some() {
+        eprintln!(
+            "lssi: sweep: the later segments' lines {late:?}: in the band {in_band}, against the chirp {against}"
+        );
+    }
+    in_band && against
 }
 
 /// The straight drift of the lines of `segments` segments, when it is a sweep's.

@@ -333,3 +333,105 @@ fn a_transient_beside_a_steady_forcing_is_not_a_sweep() {
         assert_eq!(names, ["cos", "v", "x", "x^3"], "seed {seed}");
     }
 }
+
+/// Hostile sets' records without u that the dechirping called a chirp, each now printed as
+/// its truth: a heavily damped single well over 5.5 forcing periods (21145: its "chirp" ran
+/// from −4.2 to 43.5 rad/s, under the lowest line the record resolves), and a weakly forced
+/// bistable beam in its well whose segments' lines wander (20975: dechirped into a fall from
+/// 11.5 to 5.0 rad/s while its later segments' lines rise).
+#[test]
+fn transients_the_dechirping_took_for_a_chirp_are_identified() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, args, truth) in [
+        (
+            "21145",
+            [
+                "monostable",
+                "0.02304",
+                "3.206",
+                "180600",
+                "0.09168",
+                "26.39",
+                "0.3508",
+                "493",
+                "1.319",
+                "0.0007758",
+                "0.002",
+            ],
+            [-139.149, -2.16294, -7.83854e6, 0.3508],
+        ),
+        (
+            "20975",
+            [
+                "bistable",
+                "0.002668",
+                "0.1112",
+                "1359000",
+                "0.008389",
+                "15.99",
+                "0.01881",
+                "89.98",
+                "18.33",
+                "0.0001468",
+                "0",
+            ],
+            [41.6792, -0.108318, -5.09370e8, 0.01881],
+        ),
+    ] {
+        let keys = [
+            "--wells",
+            "--mass",
+            "--k1",
+            "--k3",
+            "--zeta",
+            "--omega",
+            "--amplitude",
+            "--rate",
+            "--t-end",
+            "--x0",
+            "--delta",
+        ];
+        let mut all: Vec<&str> = Vec::new();
+        for (k, v) in keys.iter().zip(args.iter()) {
+            all.push(k);
+            all.push(v);
+        }
+        all.extend(["--observe", "x", "--seed", name]);
+        let path = gen_eveh(dir.path(), &format!("h{name}.csv"), &all);
+        let out = Command::new(LSSI)
+            .args(["identify", "--json"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success() && !stderr.contains("sweeps"),
+            "{name}: {stderr}"
+        );
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let got: Vec<(String, f64)> = json["terms"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| {
+                let n = t["term"].as_str().unwrap();
+                let n = if n.starts_with("cos(") { "cos" } else { n };
+                (n.to_owned(), t["coef"].as_f64().unwrap())
+            })
+            .collect();
+        let names: Vec<&str> = got.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["x", "v", "x^3", "cos"], "{name}");
+        // Stiffness and forcing within 5 %, damping within 25 % (the hostile sets' bars are
+        // 10 % and 25 %).
+        for ((term, c), (t, bar)) in got
+            .iter()
+            .map(|(n, c)| (n.as_str(), *c))
+            .zip(truth.iter().zip([0.05, 0.25, 0.05, 0.05]))
+        {
+            assert!(
+                (c - t).abs() <= bar * t.abs(),
+                "{name}: {term} {c} against {t}"
+            );
+        }
+    }
+}

@@ -70,6 +70,7 @@
 
 mod choose;
 mod errors;
+pub(crate) use errors::white_noise_sd;
 mod normal;
 mod shooting;
 mod summary;
