@@ -1,6 +1,7 @@
 //! The identify task's part: the identifier fed from the queue, its screenings handed over
 //! on the snapshot.
 
+use super::reference::{References, Rule};
 use super::{Clock, Event, Reading, Screening, Shared, Status};
 use core::cell::{Cell, RefCell};
 use core::sync::atomic::Ordering;
@@ -33,6 +34,8 @@ pub struct Engine<const W: usize, const P: usize, const C: usize> {
     cost_mean: u32,
     /// Scheduled screenings since configured (the stride's count).
     scheduled: u32,
+    /// The references taken off the channels, learnt from the first rows.
+    reference: References,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Default for Engine<W, P, C> {
@@ -57,6 +60,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             cost_max: 0,
             cost_mean: 0,
             scheduled: 0,
+            reference: References::new(),
         }
     }
 
@@ -89,7 +93,25 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         self.cost_max = 0;
         self.cost_mean = 0;
         self.scheduled = 0;
+        self.reference = References::new();
         Ok(())
+    }
+
+    /// The references subtracted from every row now (`None`: nothing is, or not yet: see
+    /// [`References`](super::References)).
+    pub fn reference(&self) -> Option<lssi_proto::WireReference> {
+        self.reference.subtracted()
+    }
+
+    /// The identifier configured anew with its own configuration, in place: its rows from
+    /// here on are the channels less their references. Not inlined (once a configuration).
+    #[inline(never)]
+    fn restart(&mut self) {
+        if let Some(config) = self.slot.get().map(|id| *id.config()) {
+            let _ = self.slot.configure(config);
+            self.fresh = true;
+            self.scheduled = 0;
+        }
     }
 
     /// Takes every event the queue holds: applies a requested configuration first, pushes
@@ -148,11 +170,15 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         self.publish(shared);
     }
 
-    fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P>) {
+    fn push(&mut self, index: u64, mut reading: Reading, shared: &Shared<P>) {
+        if self.reference.take(&mut reading, Rule::Equation) {
+            self.restart();
+        }
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
         let scheduled = &mut self.scheduled;
+        let reference = &self.reference;
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -185,6 +211,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                             snapshot,
                             SnapshotCause::Scheduled,
                             false,
+                            reference.subtracted(),
                         )))
                     });
                 }
@@ -211,7 +238,13 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause, window))));
+        let reference = self.reference.subtracted();
+        critical_section::with(|cs| {
+            shared
+                .full
+                .borrow(cs)
+                .set(Some((snapshot, cause, window, reference)))
+        });
         true
     }
 
@@ -236,6 +269,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     cost_mean: self.cost_mean,
                     cost_max: self.cost_max,
                     ended: self.ended && !self.final_pending,
+                    reference: self.reference.subtracted(),
                 }
             }
             None => Status {

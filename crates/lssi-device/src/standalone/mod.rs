@@ -24,6 +24,7 @@
 
 mod engine;
 mod flavour;
+mod reference;
 mod reporter;
 mod sampler;
 mod shared;
@@ -36,6 +37,7 @@ pub use engine::{Engine, IdentifyTask, Task};
 pub use flavour::{FromHost, Screening};
 #[cfg(doc)]
 use lssi_core::Snapshot;
+pub use reference::{REFERENCE_RANGES, REFERENCE_ROWS, References, Rule};
 pub use reporter::{Drift, Reporter};
 pub use sampler::{STUCK_RUN, Sampler, Schedule};
 pub use shared::{

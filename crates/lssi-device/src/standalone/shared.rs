@@ -10,7 +10,7 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use critical_section::Mutex;
 use heapless::spsc::Queue;
 use lssi_core::Snapshot;
-use lssi_proto::SnapshotCause;
+use lssi_proto::{SnapshotCause, WireReference};
 
 /// Slots of the sample queue: it holds `QUEUE_SLOTS − 1` = 64 events.
 pub const QUEUE_SLOTS: usize = 65;
@@ -127,12 +127,13 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
 /// A configuration for the identify task, with the time of row 0.
 pub(super) type Pending<S> = (<S as Screening>::Config, f64);
 
-/// A snapshot taken for a screening, with why it was taken and whether it ends a duty
-/// cycle's window.
-pub(super) type Taken<S> = (&'static mut S, SnapshotCause, bool);
+/// A snapshot taken for a screening, with why it was taken, whether it ends a duty cycle's
+/// window, and the references its rows were taken less (its model is about the channels
+/// less them).
+pub(super) type Taken<S> = (&'static mut S, SnapshotCause, bool, Option<WireReference>);
 
 /// The identifier's figures as the identify task last published them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Status {
     /// Samples accepted.
     pub samples: u64,
@@ -151,6 +152,8 @@ pub struct Status {
     pub cost_max: u32,
     /// The recording ended and its final snapshot was taken.
     pub ended: bool,
+    /// The references subtracted from every row now (`None`: nothing is, or not yet).
+    pub reference: Option<WireReference>,
 }
 
 impl<const P: usize, S: Screening> Shared<P, S> {
@@ -182,6 +185,7 @@ impl<const P: usize, S: Screening> Shared<P, S> {
                 cost_mean: 0,
                 cost_max: 0,
                 ended: false,
+                reference: None,
             })),
         }
     }

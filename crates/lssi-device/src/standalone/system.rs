@@ -7,6 +7,7 @@
 //! made in place, so that the host's f32 `SystemIdentifier` on the same rows gives the
 //! device's equations.
 
+use super::reference::{References, Rule};
 use super::{Clock, Event, Reading, Shared, Status, Task};
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
@@ -30,6 +31,8 @@ pub struct SystemEngine<const W: usize, const P: usize, const C: usize> {
     cost_sum: u64,
     cost_count: u64,
     cost_max: u32,
+    /// The references taken off the channels, learnt from the first rows.
+    reference: References,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Default for SystemEngine<W, P, C> {
@@ -52,6 +55,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
             cost_sum: 0,
             cost_count: 0,
             cost_max: 0,
+            reference: References::new(),
         }
     }
 
@@ -77,13 +81,34 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
         self.cost_sum = 0;
         self.cost_count = 0;
         self.cost_max = 0;
+        self.reference = References::new();
         Ok(())
     }
 
-    fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P, SystemShot<P>>) {
+    /// The references subtracted from every row now (`None`: nothing is, or not yet: see
+    /// [`References`](super::References)).
+    pub fn reference(&self) -> Option<lssi_proto::WireReference> {
+        self.reference.subtracted()
+    }
+
+    /// The identifier configured anew with its own configuration, in place (see
+    /// [`Engine`](super::Engine)'s). Not inlined (once a configuration).
+    #[inline(never)]
+    fn restart(&mut self) {
+        if let Some(config) = self.slot.get().map(|id| *id.config()) {
+            let _ = self.slot.configure(config);
+            self.fresh = true;
+        }
+    }
+
+    fn push(&mut self, index: u64, mut reading: Reading, shared: &Shared<P, SystemShot<P>>) {
+        if self.reference.take(&mut reading, Rule::System) {
+            self.restart();
+        }
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
+        let reference = &self.reference;
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -117,6 +142,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
                             snapshot,
                             SnapshotCause::Scheduled,
                             false,
+                            reference.subtracted(),
                         )))
                     });
                 }
@@ -147,7 +173,13 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause, window))));
+        let reference = self.reference.subtracted();
+        critical_section::with(|cs| {
+            shared
+                .full
+                .borrow(cs)
+                .set(Some((snapshot, cause, window, reference)))
+        });
         true
     }
 
@@ -167,6 +199,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
                         .map_or(0, |m| u32::try_from(m).unwrap_or(u32::MAX)),
                     cost_max: self.cost_max,
                     ended: self.ended && !self.final_pending,
+                    reference: self.reference.subtracted(),
                 }
             }
             None => Status {

@@ -289,8 +289,7 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                             }
                         }
                     ),
-                    reference: reference
-                        .map(|(x, v, e)| lssi_proto::WireReference { x, v, e }),
+                    reference: reference.map(|(x, v, e)| lssi_proto::WireReference { x, v, e }),
                 },
             ),
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
