@@ -805,3 +805,130 @@ fn the_two_channel_instrument_reports_the_systems_own_models() {
         ]
     );
 }
+
+/// Amplitudes of `signal` (about 1.2) a recording far from zero is offset by.
+const FAR: f64 = 1.0e4 * 1.2;
+
+/// The model lssi-core's f32 identifier makes of rows `from..n` of `reading`, each less
+/// `reference` as the device takes it off (`(reading as f64 − reference) as f32`), with the
+/// rows' own times: what the device's identifier, restarted at row `from`, must report.
+fn model_from(n: u32, from: u32, reference: f64, reading: impl Fn(u32) -> f32) -> (Vec<f32>, u64) {
+    let mut id: Box<Identifier<f32, W, P, C>> = Box::new(Identifier::new(config()).expect("valid"));
+    for i in from..n {
+        let _ = id.push(Sample {
+            t: f64::from(i) * 0.01,
+            x: (f64::from(reading(i)) - reference) as f32,
+            v: None,
+            u: None,
+        });
+    }
+    assert!(id.screen());
+    let model = id.model().expect("a model");
+    (
+        model.coefficients[..model.terms.len()].to_vec(),
+        id.counters().accepted,
+    )
+}
+
+/// The device's final model and the references its last Health carries.
+fn final_model(
+    frames: &[DeviceMsg],
+) -> (lssi_proto::ModelSnapshot, Option<lssi_proto::WireReference>) {
+    let model = frames
+        .iter()
+        .rev()
+        .find_map(|m| match m {
+            DeviceMsg::Model(s) if s.cause == SnapshotCause::Final => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a final model");
+    let reference = match frames.last() {
+        Some(DeviceMsg::Health { reference, .. }) => *reference,
+        other => panic!("the last frame is {other:?}"),
+    };
+    (model, reference)
+}
+
+/// A recording 10⁴ amplitudes from zero: the device learns its reference from the first
+/// 1,024 rows (their mean, summed in f64), restarts its identifier at the 1,024th and
+/// pushes every row from there less it; its final model is, bit for bit, the identifier's
+/// on rows 1023.. less that reference, and its Health names the reference. Fed as they
+/// come (no reference), the same rows give another model: f32 keeps ≈ 10 bits of the
+/// motion at 1.2 · 10⁴.
+#[test]
+fn a_recording_far_from_zero_is_identified_less_its_first_rows_mean_from_its_1024th_row() {
+    let n = 5000;
+    let raw = |i: u32| (f64::from(signal(i)) + FAR) as f32;
+    let (frames, shared) = run(n, 32, 700, raw);
+    let reference = (0..1024).map(|i| f64::from(raw(i))).sum::<f64>() / 1024.0;
+    let (got, health_reference) = final_model(&frames);
+    assert_eq!(
+        health_reference,
+        Some(lssi_proto::WireReference {
+            x: reference,
+            v: 0.0,
+            e: 0.0
+        })
+    );
+    assert_eq!(shared.status().reference, health_reference);
+    let (want, accepted) = model_from(n, 1023, reference, raw);
+    assert_eq!(
+        got.coefficients.to_vec(),
+        want,
+        "the model of rows 1023.. less the reference"
+    );
+    assert_eq!(got.samples, accepted);
+    assert_eq!(accepted, u64::from(n - 1023));
+    // Not the model of the raw rows, nor of every row less the reference.
+    assert_ne!(got.coefficients.to_vec(), model_from(n, 0, 0.0, raw).0);
+    assert_ne!(
+        got.coefficients.to_vec(),
+        model_from(n, 0, reference, raw).0
+    );
+}
+
+/// A recording about zero by the rule (an offset under 3 ranges of its first rows) never
+/// restarts: its final model is, bit for bit, the identifier's on every row as it came, and
+/// its Health names no reference.
+#[test]
+fn a_recording_about_zero_is_identified_as_it_comes() {
+    let n = 5000;
+    for offset in [0.0, 2.0] {
+        let reading = |i: u32| (f64::from(signal(i)) + offset) as f32;
+        let (frames, shared) = run(n, 32, 700, reading);
+        let (got, reference) = final_model(&frames);
+        assert_eq!(reference, None, "offset {offset}");
+        assert_eq!(shared.status().reference, None);
+        let (want, accepted) = model_from(n, 0, 0.0, reading);
+        assert_eq!(got.coefficients.to_vec(), want, "offset {offset}");
+        assert_eq!(got.samples, u64::from(n));
+        assert_eq!(accepted, u64::from(n));
+    }
+}
+
+/// NaN rows before the 1,024th finite one are not counted: the reference is the mean of
+/// the first 1,024 finite rows, and the identifier restarts at the row that completes them.
+#[test]
+fn nan_rows_are_not_counted_among_the_first_rows() {
+    let n = 5000;
+    let raw = |i: u32| {
+        if i % 100 == 5 && i < 2000 {
+            f32::NAN
+        } else {
+            (f64::from(signal(i)) + FAR) as f32
+        }
+    };
+    let (frames, shared) = run(n, 32, 700, raw);
+    let finite: Vec<u32> = (0..n).filter(|&i| raw(i).is_finite()).take(1024).collect();
+    let from = *finite.last().expect("1,024 finite rows");
+    // 11 NaN rows (5, 105, …, 1005) before the 1,024th finite one.
+    assert_eq!(from, 1023 + 11);
+    let reference = finite.iter().map(|&i| f64::from(raw(i))).sum::<f64>() / 1024.0;
+    let (got, health_reference) = final_model(&frames);
+    assert_eq!(health_reference.map(|r| r.x), Some(reference));
+    let (want, accepted) = model_from(n, from, reference, raw);
+    assert_eq!(got.coefficients.to_vec(), want);
+    assert_eq!(got.samples, accepted);
+    // The NaN rows after the restart are rejected, as before.
+    assert_eq!(shared.status().rejected, 20 - 11);
+}
