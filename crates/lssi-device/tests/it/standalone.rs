@@ -932,3 +932,137 @@ fn nan_rows_are_not_counted_among_the_first_rows() {
     // The NaN rows after the restart are rejected, as before.
     assert_eq!(shared.status().rejected, 20 - 11);
 }
+
+/// The two-channel instrument on x and V each 10⁴ amplitudes from zero (a piezo harvester):
+/// the system's engine learns both references from the first 1,024 rows, restarts at the
+/// 1,024th, and its final model is, bit for bit, lssi-core's `SystemIdentifier` on rows
+/// 1023.. less them; the Health names both. (An x'' or V' of raw rows would lose most of
+/// f32's bits.)
+#[test]
+fn the_two_channel_instrument_takes_its_first_rows_means_off_x_and_v() {
+    use lssi_core::library::Electrical;
+    use lssi_core::{LibraryConfig, PolyFamily, SystemConfig, SystemIdentifier, SystemSample};
+    use lssi_device::standalone::{SystemEngine, SystemShot};
+    use lssi_device::system::system_snapshot;
+    use lssi_testkit::harvester::Piezo;
+
+    const C2: usize = 2;
+    let period = 0.01;
+    let config = SystemConfig {
+        base: Config {
+            sample_period: period,
+            window: 41,
+            derivative_degree: 5,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: 1,
+                input: false,
+            },
+            omega: 0.8,
+            screening_period: 3_000,
+            ..Config::default()
+        },
+        electrical: [Some(Electrical::Voltage), None],
+        coupling_order: 1,
+        displacements: 1,
+    };
+    let points = Piezo::bistable().simulate(10_000, period);
+    let far =
+        |values: &mut dyn Iterator<Item = f64>| 1.0e4 * values.fold(0.0f64, |m, q| m.max(q.abs()));
+    let (dx, de) = (
+        far(&mut points.iter().map(|p| p.x)),
+        far(&mut points.iter().map(|p| p.e)),
+    );
+    let readings: Vec<(f32, f32)> = points
+        .iter()
+        .map(|p| ((p.x + dx) as f32, (p.e + de) as f32))
+        .collect();
+
+    type Shared2 = Shared<P, SystemShot<P>>;
+    let shared: &'static Shared2 = Box::leak(Box::new(Shared::new()));
+    shared.give_snapshot(Box::leak(Box::new(SystemShot::snapshot())));
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let engine: &'static mut SystemEngine<W, P, C2> = Box::leak(Box::new(SystemEngine::new()));
+    engine.configure_at(config, 0.0).expect("valid");
+    let identify: &'static IdentifyTask<W, P, C2, SystemEngine<W, P, C2>> =
+        Box::leak(Box::new(IdentifyTask::new()));
+    identify.give(engine, consumer);
+    let mut reporter: Reporter<W, P, C2, SystemShot<P>> = Reporter::new(config, 100.0, 0);
+    let clock = FakeClock(Cell::new(0));
+    let mut wire = Wire::default();
+    for (i, &(x, e)) in readings.iter().enumerate() {
+        clock.0.set(clock.0.get() + 10_000);
+        let reading = Reading {
+            x,
+            v: None,
+            u: None,
+            e: Some(e),
+        };
+        sampler.tick(clock.now(), reading, &shared.counters);
+        if i % 32 == 31 {
+            identify.run(shared, &clock);
+        }
+        if i % 500 == 499 {
+            let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+        }
+    }
+    assert!(sampler.end());
+    for _ in 0..4 {
+        identify.run(shared, &clock);
+        let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+    }
+    assert!(reporter.finished());
+    let frames = decode(&wire.0);
+
+    let mean = |f: fn(&(f32, f32)) -> f32| {
+        readings[..1024]
+            .iter()
+            .map(|r| f64::from(f(r)))
+            .sum::<f64>()
+            / 1024.0
+    };
+    let (rx, re) = (mean(|r| r.0), mean(|r| r.1));
+    let reference = match frames.last() {
+        Some(DeviceMsg::Health { reference, .. }) => *reference,
+        other => panic!("the last frame is {other:?}"),
+    };
+    assert_eq!(
+        reference,
+        Some(lssi_proto::WireReference {
+            x: rx,
+            v: 0.0,
+            e: re
+        })
+    );
+
+    let mut id: Box<SystemIdentifier<f32, W, P, 2, C2>> =
+        Box::new(SystemIdentifier::new(config).expect("valid"));
+    for (i, &(x, e)) in readings.iter().enumerate().skip(1023) {
+        let e = [(f64::from(e) - re) as f32];
+        let _ = id.push(&SystemSample {
+            x2: None,
+            v2: None,
+            t: i as f64 * period,
+            x: (f64::from(x) - rx) as f32,
+            v: None,
+            u: None,
+            electrical: &e,
+        });
+    }
+    assert!(id.screen());
+    let want = system_snapshot(id.model().expect("a model"), SnapshotCause::Final).expect("fits");
+    let got = frames
+        .iter()
+        .rev()
+        .find_map(|m| match m {
+            DeviceMsg::SystemModel(s) if s.cause == SnapshotCause::Final => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a final model");
+    assert_eq!(got.samples, (readings.len() - 1023) as u64);
+    assert_eq!(got, want, "the model of rows 1023.. less the references");
+}
