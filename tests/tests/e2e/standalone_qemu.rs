@@ -693,8 +693,17 @@ fn standalone_device_takes_its_first_rows_mean_off_a_displacement_far_from_zero(
             samples,
             overruns,
             reference,
+            cost_mean,
+            cost_max,
+            queue_high_water,
+            latency_max_ns,
             ..
-        } => Some((*samples, *overruns, *reference)),
+        } => {
+            println!(
+                "device: cost {cost_mean} ticks a row on average, {cost_max} at most; queue high-water {queue_high_water}, worst latency {latency_max_ns} ns"
+            );
+            Some((*samples, *overruns, *reference))
+        }
         _ => None,
     });
     let (Some(got), Some((samples, overruns, device_reference))) = (got, health) else {
