@@ -91,12 +91,13 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
         self.reference.subtracted()
     }
 
-    /// The identifier configured anew with its own configuration, in place (see
-    /// [`Engine`](super::Engine)'s). Not inlined (once a configuration).
+    /// The identifier started anew with its own configuration, in place
+    /// (`SystemIdentifier::forget`, as [`Engine`](super::Engine)'s). Not inlined (once a
+    /// configuration).
     #[inline(never)]
     fn restart(&mut self) {
-        if let Some(config) = self.slot.get().map(|id| *id.config()) {
-            let _ = self.slot.configure(config);
+        if let Some(id) = self.slot.get_mut() {
+            id.forget();
             self.fresh = true;
         }
     }
