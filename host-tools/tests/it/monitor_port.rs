@@ -18,7 +18,7 @@ use serialport::SerialPort;
 
 /// The reference a standalone device learnt for x (raw counts at mid-scale, with a motion
 /// of 10⁻⁷ of it: every digit must reach the host).
-const REFERENCE_X: f64 = 2048.000_123_456_789;
+const REFERENCE_X: f64 = 2_048.000_123_456_789;
 
 fn health(drift: Option<WireDrift>, reference: Option<WireReference>) -> DeviceMsg {
     DeviceMsg::Health {

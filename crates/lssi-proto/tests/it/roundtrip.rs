@@ -392,7 +392,7 @@ fn health_carries_the_references_since_version_9_in_f64() {
     );
     // With `Some` and three f64 appended it decodes, every bit of each reference kept (an
     // ADC's mid-scale and a motion 10⁻⁴ of it).
-    let (x, v, e) = (2048.000_123_456_789_f64, -1.0e4 - 1.0e-9, 1.65);
+    let (x, v, e) = (2_048.000_123_456_789_f64, -1.0e4 - 1.0e-9, 1.65);
     let mut new = old.clone();
     new.push(0x01);
     for r in [x, v, e] {
