@@ -120,6 +120,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
         heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
         heapless::Vec<f32, MAX_TERMS>,
     )>,
+    /// The references that model is about.
+    previous_reference: Option<WireReference>,
     drift: Option<Drift>,
     windows: u32,
 }
@@ -152,6 +154,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             to_keep: None,
             duty: None,
             previous: None,
+            previous_reference: None,
             drift: None,
             windows: 0,
         }
@@ -183,6 +186,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.duty = None;
         }
         self.previous = None;
+        self.previous_reference = None;
         self.drift = None;
         self.windows = 0;
         shared.request_schedule(schedule);
@@ -381,6 +385,12 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         let Some(DeviceMsg::Model(latest)) = self.latest.as_ref() else {
             return;
         };
+        // A model about other coordinates (the references were learnt since: the identifier
+        // restarted) has nothing to compare with: the drift starts again from this one.
+        if self.previous_reference != self.latest_reference {
+            self.previous = None;
+        }
+        self.previous_reference = self.latest_reference;
         let drift = match &self.previous {
             Some((terms, coefficients)) => {
                 let previous = ModelSnapshot {

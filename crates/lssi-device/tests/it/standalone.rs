@@ -1066,3 +1066,38 @@ fn the_two_channel_instrument_takes_its_first_rows_means_off_x_and_v() {
     assert_eq!(got.samples, (readings.len() - 1023) as u64);
     assert_eq!(got, want, "the model of rows 1023.. less the references");
 }
+
+/// Duty-cycled windows on a displacement 10⁴ amplitudes from zero: the first window's model
+/// is of the raw rows (no reference yet, none reported); the references are learnt at row
+/// 1,023, in the second window, which restarts the identifier: its model is about x less
+/// the reference, the Health says so from then on, and the drift starts again there (a
+/// model in other coordinates has nothing to compare with), then measures the windows
+/// after as before.
+#[test]
+fn duty_cycled_windows_start_the_drift_again_at_the_restart() {
+    let x = duffing(9_000, |_| 4.0);
+    let far = |i: u32| (f64::from(x[i as usize]) + 1.0e4) as f32;
+    let (reports, frames) = windows(9_000, 10.0, 20.0, far);
+    assert_eq!(reports.len(), 3, "{reports:?}");
+    let samples: Vec<u64> = reports.iter().map(|(s, _)| *s).collect();
+    assert_eq!(samples, [1000, 2000 - 1023, 3000 - 1023]);
+    let references: Vec<Option<f64>> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { reference, .. } => Some(reference.map(|r| r.x)),
+            _ => None,
+        })
+        .collect();
+    // The first 1,024 rows: window 1's 1,000 (conversions 0..1000) and window 2's first 24
+    // (from conversion 3,000: windows every 30 s).
+    let first = (0..1000).chain(3000..3024);
+    let mean = first.map(|i| f64::from(far(i))).sum::<f64>() / 1024.0;
+    assert_eq!(references, [None, Some(mean), Some(mean)]);
+    // The drift starts again at the second window, and the third moves little from it.
+    assert_eq!(reports[0].1.relative, 0.0);
+    assert_eq!(reports[1].1.relative, 0.0, "{reports:?}");
+    assert!(
+        reports[2].1.relative > 0.0 && reports[2].1.relative < 0.05,
+        "{reports:?}"
+    );
+}
