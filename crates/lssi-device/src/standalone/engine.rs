@@ -132,6 +132,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
         {
             // A refused configuration was checked by thread mode before it was requested.
             let _ = self.configure_at(config, offset);
+            shared.set_reference(None);
         }
         while let Some(event) = events.dequeue() {
             shared.counters.consumed.fetch_add(1, Ordering::Relaxed);
@@ -175,12 +176,13 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
     fn push(&mut self, index: u64, mut reading: Reading, shared: &Shared<P>) {
         if self.reference.take(&mut reading, Rule::Equation) {
             self.restart();
+            shared.set_reference(self.reference.subtracted());
         }
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
         let scheduled = &mut self.scheduled;
-        let reference = &self.reference;
+        let shifted = self.reference.subtracted().is_some();
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -213,7 +215,7 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                             snapshot,
                             SnapshotCause::Scheduled,
                             false,
-                            reference.subtracted(),
+                            shifted,
                         )))
                     });
                 }
@@ -240,12 +242,12 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        let reference = self.reference.subtracted();
+        let shifted = self.reference.subtracted().is_some();
         critical_section::with(|cs| {
             shared
                 .full
                 .borrow(cs)
-                .set(Some((snapshot, cause, window, reference)))
+                .set(Some((snapshot, cause, window, shifted)))
         });
         true
     }
@@ -271,7 +273,6 @@ impl<const W: usize, const P: usize, const C: usize> Engine<W, P, C> {
                     cost_mean: self.cost_mean,
                     cost_max: self.cost_max,
                     ended: self.ended && !self.final_pending,
-                    reference: self.reference.subtracted(),
                 }
             }
             None => Status {

@@ -10,7 +10,7 @@ use lssi_core::Snapshot;
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_BATCH, MAX_DEVICE_FRAME_LEN,
     MAX_TERMS, ModelSnapshot, NakReason, PROTOCOL_VERSION, SnapshotCause, WireConfig, WireDuty,
-    WireReference, encode,
+    encode,
 };
 
 /// How the model moved from one duty-cycle window's model to the next (a model every
@@ -84,8 +84,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
     buffer: [u8; MAX_DEVICE_FRAME_LEN],
     /// The latest model's frame (`Model` or `SystemModel`).
     latest: Option<DeviceMsg>,
-    /// The references the latest model's rows were taken less.
-    latest_reference: Option<WireReference>,
+    /// The latest model's rows were taken less the references ([`Shared::reference`]).
+    latest_shifted: bool,
     config: Option<S::Config>,
     rate_hz: f32,
     /// The ADC's conversion rate, Hz, and the CIC order rows are decimated with (0.0: no
@@ -120,8 +120,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
         heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
         heapless::Vec<f32, MAX_TERMS>,
     )>,
-    /// The references that model is about.
-    previous_reference: Option<WireReference>,
+    /// That model's rows were taken less the references.
+    previous_shifted: bool,
     drift: Option<Drift>,
     windows: u32,
 }
@@ -134,7 +134,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             decoder: HostFrameDecoder::new(),
             buffer: [0; MAX_DEVICE_FRAME_LEN],
             latest: None,
-            latest_reference: None,
+            latest_shifted: false,
             config: Some(config),
             rate_hz,
             adc_hz: 0.0,
@@ -154,7 +154,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             to_keep: None,
             duty: None,
             previous: None,
-            previous_reference: None,
+            previous_shifted: false,
             drift: None,
             windows: 0,
         }
@@ -186,7 +186,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.duty = None;
         }
         self.previous = None;
-        self.previous_reference = None;
+        self.previous_shifted = false;
         self.drift = None;
         self.windows = 0;
         shared.request_schedule(schedule);
@@ -287,13 +287,13 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         screened: impl FnOnce(),
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
-        if let Some((snapshot, cause, window, reference)) = shared.take_full() {
+        if let Some((snapshot, cause, window, shifted)) = shared.take_full() {
             // A duty cycle's window makes a model every `model_every`-th time only: the
             // others end with Health alone, unscreened (their rows are in the identifier,
             // and the next model's snapshot is taken from it anew).
             let model = !window || self.models_this_window();
             if model {
-                self.screen(snapshot, cause, reference, clock);
+                self.screen(snapshot, cause, shifted, clock);
             }
             critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
             screened();
@@ -343,7 +343,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         &mut self,
         snapshot: &mut S,
         cause: SnapshotCause,
-        reference: Option<WireReference>,
+        shifted: bool,
         clock: &K,
     ) {
         let start = clock.now();
@@ -355,17 +355,17 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.screenings_run = self.screenings_run.wrapping_add(1);
         }
         if made {
-            self.take_model(snapshot, cause, reference);
+            self.take_model(snapshot, cause, shifted);
         }
     }
 
     /// The snapshot's model as the latest message. Not inlined: the frame's message is
     /// built here, apart from the screening's locals.
     #[inline(never)]
-    fn take_model(&mut self, snapshot: &S, cause: SnapshotCause, reference: Option<WireReference>) {
+    fn take_model(&mut self, snapshot: &S, cause: SnapshotCause, shifted: bool) {
         if let Some(message) = snapshot.message(cause) {
             self.latest = Some(message);
-            self.latest_reference = reference;
+            self.latest_shifted = shifted;
         }
     }
 
@@ -387,10 +387,10 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         };
         // A model about other coordinates (the references were learnt since: the identifier
         // restarted) has nothing to compare with: the drift starts again from this one.
-        if self.previous_reference != self.latest_reference {
+        if self.previous_shifted != self.latest_shifted {
             self.previous = None;
         }
-        self.previous_reference = self.latest_reference;
+        self.previous_shifted = self.latest_shifted;
         let drift = match &self.previous {
             Some((terms, coefficients)) => {
                 let previous = ModelSnapshot {
@@ -571,10 +571,10 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             drift: self.drift.as_ref().map(crate::wire::drift_to_wire),
             // Those of the latest model (a model screened from rows before the restart is
             // about the raw channels); without a model, those subtracted now.
-            reference: if self.latest.is_some() {
-                self.latest_reference
+            reference: if self.latest.is_some() && !self.latest_shifted {
+                None
             } else {
-                s.reference
+                shared.reference()
             },
         }
     }

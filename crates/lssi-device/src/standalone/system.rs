@@ -105,11 +105,12 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
     fn push(&mut self, index: u64, mut reading: Reading, shared: &Shared<P, SystemShot<P>>) {
         if self.reference.take(&mut reading, Rule::System) {
             self.restart();
+            shared.set_reference(self.reference.subtracted());
         }
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
-        let reference = &self.reference;
+        let shifted = self.reference.subtracted().is_some();
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -143,7 +144,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
                             snapshot,
                             SnapshotCause::Scheduled,
                             false,
-                            reference.subtracted(),
+                            shifted,
                         )))
                     });
                 }
@@ -174,12 +175,12 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        let reference = self.reference.subtracted();
+        let shifted = self.reference.subtracted().is_some();
         critical_section::with(|cs| {
             shared
                 .full
                 .borrow(cs)
-                .set(Some((snapshot, cause, window, reference)))
+                .set(Some((snapshot, cause, window, shifted)))
         });
         true
     }
@@ -200,7 +201,6 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
                         .map_or(0, |m| u32::try_from(m).unwrap_or(u32::MAX)),
                     cost_max: self.cost_max,
                     ended: self.ended && !self.final_pending,
-                    reference: self.reference.subtracted(),
                 }
             }
             None => Status {
@@ -226,6 +226,7 @@ impl<const W: usize, const P: usize, const C: usize> Task<P> for SystemEngine<W,
             critical_section::with(|cs| shared.pending.borrow(cs).take())
         {
             let _ = self.configure_at(config, offset);
+            shared.set_reference(None);
         }
         while let Some(event) = events.dequeue() {
             shared.counters.consumed.fetch_add(1, Ordering::Relaxed);

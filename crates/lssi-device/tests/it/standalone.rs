@@ -870,7 +870,7 @@ fn a_recording_far_from_zero_is_identified_less_its_first_rows_mean_from_its_102
             e: 0.0
         })
     );
-    assert_eq!(shared.status().reference, health_reference);
+    assert_eq!(shared.reference(), health_reference);
     let (want, accepted) = model_from(n, 1023, reference, raw);
     assert_eq!(
         got.coefficients.to_vec(),
@@ -898,7 +898,7 @@ fn a_recording_about_zero_is_identified_as_it_comes() {
         let (frames, shared) = run(n, 32, 700, reading);
         let (got, reference) = final_model(&frames);
         assert_eq!(reference, None, "offset {offset}");
-        assert_eq!(shared.status().reference, None);
+        assert_eq!(shared.reference(), None);
         let (want, accepted) = model_from(n, 0, 0.0, reading);
         assert_eq!(got.coefficients.to_vec(), want, "offset {offset}");
         assert_eq!(got.samples, u64::from(n));
