@@ -259,6 +259,7 @@ impl<const W: usize, const P: usize, const C: usize> Device<W, P, C> {
             sample_rate_hz: 0.0,
             // No duty cycle: the host sends the samples.
             drift: None,
+            reference: None,
         }
     }
 }

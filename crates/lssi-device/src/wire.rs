@@ -438,6 +438,7 @@ mod drift_tests {
             screenings_skipped: 0,
             sample_rate_hz: 200.0,
             drift: Some(wire),
+            reference: None,
         };
         let mut frame = [0u8; lssi_proto::MAX_DEVICE_FRAME_LEN];
         let len = encode(&health, &mut frame).unwrap();

@@ -100,6 +100,12 @@ pub enum DeviceMsg {
         /// last two windows (`None` without a duty cycle, and before the first window's
         /// report). Since version 7.
         drift: Option<WireDrift>,
+        /// Standalone device: the references it subtracts from its channels (each learnt
+        /// from the channel's first rows, as `lssi identify` does; see [`WireReference`]):
+        /// the latest `Model` or `SystemModel` is about the channels less these. `None`:
+        /// nothing is subtracted (channels about zero, the first rows still to come, or a
+        /// device the host feeds). Since version 9.
+        reference: Option<WireReference>,
     },
     /// Raw defmt frames, decoded on the host with the firmware's ELF.
     Log {
@@ -129,7 +135,8 @@ impl MaxSize for DeviceMsg {
             + 3 * u32::POSTCARD_MAX_SIZE
             + u16::POSTCARD_MAX_SIZE
             + f32::POSTCARD_MAX_SIZE
-            + <Option<WireDrift>>::POSTCARD_MAX_SIZE,
+            + <Option<WireDrift>>::POSTCARD_MAX_SIZE
+            + <Option<WireReference>>::POSTCARD_MAX_SIZE,
         vec_max_size::<u8>(MAX_LOG),
         ModelPart::POSTCARD_MAX_SIZE,
         #[cfg(feature = "system")]
@@ -157,6 +164,23 @@ pub struct WireDrift {
     pub largest_term: u8,
     /// Terms that entered or left the model.
     pub support_changes: u8,
+}
+
+/// The references a standalone device subtracts from its channels before they meet its f32
+/// identifier (in [`DeviceMsg::Health`]): the mean of a channel's first 1,024 finite rows
+/// when it lies far from zero (raw ADC counts, a sensor biased at mid-rail), else 0. The
+/// device's model is about the channels less these; the readings are `model's channel +
+/// reference`. In f64: a reference 10⁴ amplitudes from zero keeps every bit of the motion
+/// (an f32 offset would not). Since version 9.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, MaxSize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireReference {
+    /// Subtracted from the displacement x.
+    pub x: f64,
+    /// Subtracted from the measured velocity v (0 without one).
+    pub v: f64,
+    /// Subtracted from the electrical channel (a system's V or I; 0 for one equation).
+    pub e: f64,
 }
 
 /// Why the device refused a frame or a command.

@@ -59,7 +59,7 @@ pub use compact::{
 };
 pub use device::{
     CostUnit, DeviceMsg, ModelSnapshot, NakReason, SnapshotCause, SolutionSummary, TermCode,
-    TermKind, WireDrift,
+    TermKind, WireDrift, WireReference,
 };
 pub use error::Error;
 #[cfg(feature = "std")]
@@ -83,7 +83,7 @@ pub use system::{
 /// The one thing that never changes is how the version itself travels: variant 0 of both
 /// message enums starts with `protocol_version`, so peers of any two versions can read each
 /// other's version and [`decode_frame`] reports [`Error::VersionMismatch`] instead of garbage.
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;
 
 /// The `seq` of a [`DeviceMsg::Ack`] or [`DeviceMsg::Nak`] that answers a command
 /// (`Configure`, `Reset`, `Query`) rather than a sample batch. Batches are numbered from 0

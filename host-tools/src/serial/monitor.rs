@@ -563,15 +563,22 @@ fn summary(seen: &Seen, session: &Session, rate: f64) -> Result<Value, CliError>
         Some(DeviceMsg::Health { samples, .. }) => *samples,
         _ => 0,
     };
-    let (overruns, high_water, latency, drift) = match &seen.health {
+    let (overruns, high_water, latency, drift, reference) = match &seen.health {
         Some(DeviceMsg::Health {
             overruns,
             queue_high_water,
             latency_max_ns,
             drift,
+            reference,
             ..
-        }) => (*overruns, *queue_high_water, *latency_max_ns, *drift),
-        _ => (0, 0, 0, None),
+        }) => (
+            *overruns,
+            *queue_high_water,
+            *latency_max_ns,
+            *drift,
+            *reference,
+        ),
+        _ => (0, 0, 0, None, None),
     };
     Ok(json!({
         "samples": samples,
@@ -581,6 +588,9 @@ fn summary(seen: &Seen, session: &Session, rate: f64) -> Result<Value, CliError>
         "latency_max_us": f64::from(latency) / 1000.0,
         "frames": seen.frames,
         "drift": drift.map(|d| crate::telemetry::decode::drift_json(&d)),
+        // The references the device took off its channels (its model's terms are about
+        // the channels less them), null when none.
+        "reference": reference.map(|r| crate::telemetry::decode::reference_json(&r)),
         "terms": terms,
     }))
 }
@@ -660,12 +670,16 @@ fn health_line(health: &DeviceMsg) -> String {
             sample_rate_hz,
             crc_errors,
             drift,
+            reference,
             ..
         } => format!(
-            "samples {samples} at {sample_rate_hz} Hz ({rejected} rejected)   overruns {overruns}   queue high-water {queue_high_water}   worst latency {:.1} µs   screenings {screenings} ({screenings_skipped} skipped)   bad frames in {crc_errors}{}",
+            "samples {samples} at {sample_rate_hz} Hz ({rejected} rejected)   overruns {overruns}   queue high-water {queue_high_water}   worst latency {:.1} µs   screenings {screenings} ({screenings_skipped} skipped)   bad frames in {crc_errors}{}{}",
             f64::from(*latency_max_ns) / 1000.0,
             drift
                 .map(|d| format!("   {}", crate::telemetry::decode::drift_text(&d)))
+                .unwrap_or_default(),
+            reference
+                .map(|r| format!("   {}", crate::telemetry::decode::reference_text(&r)))
                 .unwrap_or_default()
         ),
         _ => String::new(),

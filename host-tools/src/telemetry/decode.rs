@@ -236,6 +236,7 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             screenings_skipped,
             sample_rate_hz,
             drift,
+            reference,
         } => json!({
             "kind": "health",
             "samples": samples,
@@ -258,6 +259,7 @@ pub fn message_json(message: &DeviceMsg, session: &(Config, bool)) -> Value {
             "screenings_skipped": screenings_skipped,
             "sample_rate_hz": sample_rate_hz,
             "drift": drift.map(|d| drift_json(&d)),
+            "reference": reference.map(|r| reference_json(&r)),
         }),
         DeviceMsg::Log { bytes } => json!({ "kind": "log", "bytes": hex(bytes) }),
         DeviceMsg::ModelPart(part) => json!({
@@ -354,10 +356,12 @@ pub fn render_text(entries: &[Entry]) -> String {
                     cost_unit,
                     screenings,
                     drift,
+                    reference,
                     ..
                 } => out.push_str(&format!(
-                    "{at}health: {samples} samples ({rejected} rejected), {screenings} screenings, {frames_ok} frames ok, {crc_errors} CRC errors, {duplicates} duplicates, cost {cost_mean} mean / {cost_max} max {cost_unit:?}{}\n",
-                    drift.map(|d| format!(", {}", drift_text(&d))).unwrap_or_default()
+                    "{at}health: {samples} samples ({rejected} rejected), {screenings} screenings, {frames_ok} frames ok, {crc_errors} CRC errors, {duplicates} duplicates, cost {cost_mean} mean / {cost_max} max {cost_unit:?}{}{}\n",
+                    drift.map(|d| format!(", {}", drift_text(&d))).unwrap_or_default(),
+                    reference.map(|r| format!(", {}", reference_text(&r))).unwrap_or_default()
                 )),
                 DeviceMsg::Log { bytes } => out.push_str(&format!("{at}device: {}\n", hex(bytes))),
                 DeviceMsg::ModelPart(part) => out.push_str(&format!(
@@ -423,12 +427,13 @@ pub fn csv_rows(entries: &[Entry]) -> Vec<[String; 5]> {
             Event::Message(message @ DeviceMsg::Health { .. }) => {
                 if let Value::Object(map) = message_json(message, &session) {
                     for (field, value) in map {
-                        if let Value::Object(drift) = &value {
-                            // The drift's figures, a row each (none without a duty cycle).
-                            for (name, figure) in drift {
+                        if let Value::Object(figures) = &value {
+                            // The drift's figures and the references, a row each (none
+                            // without a duty cycle, or with channels about zero).
+                            for (name, figure) in figures {
                                 row("health", &format!("{field}_{name}"), figure.to_string());
                             }
-                        } else if field == "drift" {
+                        } else if field == "drift" || field == "reference" {
                         } else if field != "kind" {
                             let text = match value {
                                 Value::String(s) => s,
@@ -445,6 +450,30 @@ pub fn csv_rows(entries: &[Entry]) -> Vec<[String; 5]> {
         }
     }
     rows
+}
+
+/// A standalone device's references as `lssi log --json` and `lssi monitor --json` give
+/// them: x, v, e, each as the device has it in f64 (0: nothing subtracted).
+pub fn reference_json(reference: &lssi_proto::WireReference) -> Value {
+    json!({
+        "x": reference.x,
+        "v": reference.v,
+        "e": reference.e,
+    })
+}
+
+/// A standalone device's references in words: "references x 10000.0012 (the model is
+/// about the channels less them)", the channels about zero left out.
+pub fn reference_text(reference: &lssi_proto::WireReference) -> String {
+    let named: Vec<String> = [("x", reference.x), ("v", reference.v), ("e", reference.e)]
+        .iter()
+        .filter(|(_, r)| *r != 0.0)
+        .map(|(name, r)| format!("{name} {r}"))
+        .collect();
+    format!(
+        "references {} (the model is about the channels less them)",
+        named.join(", ")
+    )
 }
 
 /// A duty cycle's drift as `lssi log --json` and `lssi monitor --json` give it.

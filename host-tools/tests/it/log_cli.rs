@@ -66,6 +66,7 @@ fn health(samples: u64) -> DeviceMsg {
         screenings_skipped: 0,
         sample_rate_hz: 0.0,
         drift: None,
+        reference: None,
     }
 }
 

@@ -12,11 +12,15 @@ use std::time::{Duration, Instant};
 use crate::common::lssi;
 use lssi_proto::{
     CONTROL_SEQ, CostUnit, DeviceMsg, HostFrameDecoder, HostMsg, MAX_FRAME_LEN, NakReason,
-    WireConfig, WireDrift, encode,
+    WireConfig, WireDrift, WireReference, encode,
 };
 use serialport::SerialPort;
 
-fn health(drift: Option<WireDrift>) -> DeviceMsg {
+/// The reference a standalone device learnt for x (raw counts at mid-scale, with a motion
+/// of 10⁻⁷ of it: every digit must reach the host).
+const REFERENCE_X: f64 = 2_048.000_123_456_789;
+
+fn health(drift: Option<WireDrift>, reference: Option<WireReference>) -> DeviceMsg {
     DeviceMsg::Health {
         samples: 2000,
         rejected: 0,
@@ -38,6 +42,7 @@ fn health(drift: Option<WireDrift>) -> DeviceMsg {
         screenings_skipped: 0,
         sample_rate_hz: 250.0,
         drift,
+        reference,
     }
 }
 
@@ -85,7 +90,13 @@ fn board(
                 largest_term: 1,
                 support_changes: 0,
             };
-            let len = encode(&health(Some(drift)), &mut frame).unwrap();
+            // The first window's rows were still being learnt from: no reference.
+            let reference = (window > 1).then_some(WireReference {
+                x: REFERENCE_X,
+                v: 0.0,
+                e: 0.0,
+            });
+            let len = encode(&health(Some(drift), reference), &mut frame).unwrap();
             if master.write_all(&frame[..len]).is_err() {
                 return;
             }
@@ -146,7 +157,23 @@ fn a_row_rate_and_a_duty_cycle_are_sent_and_the_drift_is_shown() {
     for (k, h) in healths.iter().enumerate() {
         assert_eq!(h["drift"]["windows"], k as u64 + 1, "{h}");
         assert_eq!(h["drift"]["largest_term"], 1, "{h}");
+        // The device's references, as it has them (null before it learnt any).
+        if k == 0 {
+            assert!(h["reference"].is_null(), "{h}");
+        } else {
+            assert_eq!(h["reference"]["x"].as_f64(), Some(REFERENCE_X), "{h}");
+            assert_eq!(h["reference"]["v"].as_f64(), Some(0.0), "{h}");
+        }
     }
+    // lssi log names them in words.
+    let text = lssi(&["log", log.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains(&format!(
+            "references x {REFERENCE_X} (the model is about the channels less them)"
+        )),
+        "{text}"
+    );
     drop(slave);
 }
 

@@ -619,3 +619,122 @@ fn standalone_device_identifies_in_windows_and_reports_at_each_windows_end() {
     }
     println!("windowed device's final model: {:?}", got.coefficients);
 }
+
+/// The standalone device on a displacement 10⁴ amplitudes from zero (the shipped harvester,
+/// `lssi gen eveh` at 10 kHz for 3 s, offset by 10⁴ times its largest |x|): it learns the
+/// reference from its first 1,024 rows (their mean, in f64), restarts its identifier at the
+/// 1,024th and pushes every row from there less it. Its final model must be, term for term
+/// and bit for bit, `lssi identify --f32 --no-refine`'s on those rows (1023..) less the
+/// reference its Health reports (identify's own reference rule sees them about zero), and
+/// that reference must be the first 1,024 readings' mean as the host sums them.
+#[test]
+#[ignore = "needs qemu-system-arm and the standalone firmware ELF: bash scripts/ci-qemu.sh runs it"]
+fn standalone_device_takes_its_first_rows_mean_off_a_displacement_far_from_zero() {
+    use lssi_host::identify::Reference;
+    use lssi_host::serial::replay::report_from_snapshot;
+    use lssi_proto::{DeviceMsg, SnapshotCause, WireReference};
+
+    const ADC_HZ: f64 = 10_000.0;
+    const FIRST: usize = 1024;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("eveh-10k.csv");
+    let gen_args = Gen::try_parse_from([
+        "gen".as_ref(),
+        "eveh".as_ref(),
+        csv.as_os_str(),
+        "--rate".as_ref(),
+        "10000".as_ref(),
+        "--t-end".as_ref(),
+        "3".as_ref(),
+        "--observe".as_ref(),
+        "x".as_ref(),
+    ] as [&std::ffi::OsStr; 9])
+    .expect("gen arguments")
+    .args;
+    generate::run(&gen_args).expect("lssi gen eveh");
+    let about_zero = Recording::read(&csv, &ColumnNames::default()).expect("the recording");
+    let amplitude = about_zero.x.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let offset = 1.0e4 * amplitude;
+    let far: Vec<f64> = about_zero.x.iter().map(|x| x + offset).collect();
+    let far_csv = dir.path().join("eveh-far.csv");
+    lssi_host::recording::write_csv(&far_csv, &["t", "x"], &[&about_zero.t, &far]).expect("CSV");
+    let recording = Recording::read(&far_csv, &ColumnNames::default()).expect("the recording");
+
+    // The readings as the image holds them (f32), their first 1,024's mean in f64, and the
+    // rows from the 1,024th on less it, as the device pushes them.
+    let readings: Vec<f32> = recording.x.iter().map(|&x| x as f32).collect();
+    let reference = readings[..FIRST].iter().map(|&x| f64::from(x)).sum::<f64>() / FIRST as f64;
+    let shifted = |reference: f64| -> Recording {
+        let xs: Vec<f64> = readings[FIRST - 1..]
+            .iter()
+            .map(|&x| f64::from((f64::from(x) - reference) as f32))
+            .collect();
+        let path = dir.path().join("eveh-less-reference.csv");
+        lssi_host::recording::write_csv(&path, &["t", "x"], &[&recording.t[FIRST - 1..], &xs])
+            .expect("CSV");
+        Recording::read(&path, &ColumnNames::default()).expect("rows")
+    };
+    let rows = shifted(reference);
+    assert!(
+        Reference::of(&rows).is_zero(),
+        "identify sees the rows about zero"
+    );
+    let (config, estimated) = lssi_host::identify::configure(&rows, &Options::default())
+        .expect("lssi identify's configuration for the rows");
+    let wire = lssi_device::wire::config_to_wire(&config).expect("encodable");
+
+    let (messages, _) = run_standalone(&recording, ADC_HZ, &wire, dir.path());
+    let got = messages.iter().rev().find_map(|m| match m {
+        DeviceMsg::Model(s) if s.cause == SnapshotCause::Final => Some(s),
+        _ => None,
+    });
+    let health = messages.iter().rev().find_map(|m| match m {
+        DeviceMsg::Health {
+            samples,
+            overruns,
+            reference,
+            cost_mean,
+            cost_max,
+            queue_high_water,
+            latency_max_ns,
+            ..
+        } => {
+            println!(
+                "device: cost {cost_mean} ticks a row on average, {cost_max} at most; queue high-water {queue_high_water}, worst latency {latency_max_ns} ns"
+            );
+            Some((*samples, *overruns, *reference))
+        }
+        _ => None,
+    });
+    let (Some(got), Some((samples, overruns, device_reference))) = (got, health) else {
+        panic!("no final model and health in {} frames", messages.len());
+    };
+    println!("device: {samples} rows, {overruns} overruns, reference {device_reference:?}");
+    assert_eq!(overruns, 0, "samples lost");
+    assert_eq!(
+        device_reference,
+        Some(WireReference {
+            x: reference,
+            v: 0.0,
+            e: 0.0
+        }),
+        "the first 1,024 readings' mean, {reference}"
+    );
+    assert_eq!(samples, (readings.len() - (FIRST - 1)) as u64);
+    assert_eq!(got.samples, samples);
+
+    // lssi identify --f32 --no-refine on the rows less the device's reference.
+    let device_rows = shifted(device_reference.expect("a reference").x);
+    let want = lssi_host::identify::identify_recording(&device_rows, &Options::default())
+        .expect("identify --f32");
+    let got = report_from_snapshot(got, &config, estimated).expect("a readable model");
+    let terms = |r: &lssi_host::identify::Report| -> Vec<(String, u64)> {
+        r.terms
+            .iter()
+            .map(|t| (t.term.clone(), t.coef.to_bits()))
+            .collect()
+    };
+    println!("device's model less the reference: {:?}", got.terms);
+    assert_eq!(terms(&got), terms(&want), "bit for bit: {:?}", want.terms);
+    assert!(!want.terms.is_empty());
+}

@@ -205,8 +205,13 @@ impl<T: Real, const P: usize> Halves<T, P> {
             // spans two test functions, so that A's and B's rows share little of the data.
             // A sum goes straight into A or B, whose content at the start of its block is
             // one block old.
+            // The bump of sums of the same width is kept (the same bits as designed anew).
+            let kept = match &self.collector {
+                Collector::Sums(sums) => sums.bump_for(test_rows),
+                Collector::Block(_) => None,
+            };
             let mut sums = TestRows::zeroed();
-            sums.configure(test_rows);
+            sums.configure_with(test_rows, kept);
             let sqrt_lambda_sum = power(sqrt_lambda_row, f64::from(sums.quarter()));
             self.collector = Collector::Sums(sums);
             self.block_len = TEST_BLOCK;

@@ -44,6 +44,16 @@ impl<T: Real> ChannelNoise<T> {
         }
     }
 
+    /// The filters' ‖h‖² it was made with.
+    pub(super) fn gains(&self) -> (T, T) {
+        self.gains
+    }
+
+    /// The filters' h·h' it was made with.
+    pub(super) fn cross(&self) -> (T, T) {
+        self.cross
+    }
+
     /// No rows yet, with the filters' ‖h‖² (`gains`) and h·h' (`cross`).
     pub(super) fn new(gains: (T, T), cross: (T, T)) -> Self {
         Self {

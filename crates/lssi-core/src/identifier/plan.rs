@@ -67,15 +67,38 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
     /// each of them would otherwise inline a copy.
     #[inline(never)]
     pub(super) fn apply(&mut self, plan: &Plan<T, P>) {
-        // Every field by name (no `..`): a field added to the struct and not set here does
-        // not compile.
+        self.config = plan.config;
+        self.library.clone_from(&plan.library);
+        self.front.configure(plan.config.channels);
+        let (gains, cross) = Self::design_taps(&mut self.front, plan);
+        self.noise = ChannelNoise::new(gains, cross);
+        self.start();
+    }
+
+    /// Forgets every sample, row, factor and model, keeping the configuration, its library
+    /// and its designed taps: afterwards the identifier is, bit for bit, what
+    /// [`Identifier::reconfigure`] with its own configuration makes, without designing the
+    /// taps again (the f64 part of configuring: on the M4F, in software, most of its
+    /// instructions). A standalone device that restarts its identifier mid-recording (its
+    /// channels' references learnt) does this between two rows.
+    pub fn forget(&mut self) {
+        self.front.configure(self.config.channels);
+        self.noise = ChannelNoise::new(self.noise.gains(), self.noise.cross());
+        self.start();
+    }
+
+    /// Sets every field but the configuration, the library, the front end's taps and the
+    /// noise's gains for the configuration: the state of a new identifier.
+    fn start(&mut self) {
+        // Every field by name (no `..`): a field added to the struct and not set here (or
+        // in `apply`, for those bound to `_`) does not compile.
         let Self {
             config,
             library,
             intake,
             schedule,
-            front,
-            noise,
+            front: _,
+            noise: _,
             smoothing,
             offset,
             gate,
@@ -87,14 +110,9 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
             counters,
             model,
         } = self;
-        let c = plan.config;
-        *config = c;
-        library.clone_from(&plan.library);
+        let c = *config;
         *intake = Intake::new(&c);
         *schedule = Schedule::new(&c);
-        front.configure(c.channels);
-        let (gains, cross) = Self::design_taps(front, plan);
-        *noise = ChannelNoise::new(gains, cross);
         *smoothing = Smoothing::new(c.row_stride);
         let stride = usize::from(c.row_stride);
         let blocks = (2 * c.window / stride).max(16) as u64;
@@ -107,7 +125,7 @@ impl<T: Real, const W: usize, const P: usize, const C: usize> Identifier<T, W, P
         *phasor = Phasor::new(c.omega, row_period);
         *columns = Columns::new();
         *scratch = Scratch::zeroed();
-        halves.configure(plan.library.len(), c.test_rows, blocks, sqrt_lambda_row);
+        halves.configure(library.len(), c.test_rows, blocks, sqrt_lambda_row);
         *counters = Counters::default();
         *model = None;
     }

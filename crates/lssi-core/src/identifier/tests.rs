@@ -178,6 +178,42 @@ fn configured_in_place_gives_the_models_of_new_bit_for_bit() {
     assert_eq!(models_of(&mut id, XV, 12_000), reference);
 }
 
+/// `forget` keeps the configuration and its taps and forgets the rest: a used identifier
+/// (rows as they are, with forgetting; then test-function sums) forgotten gives the models of
+/// a new one, bit for bit, and a second time too (the sums' bump kept).
+#[test]
+fn forgotten_gives_the_models_of_new_bit_for_bit() {
+    let sums = Config {
+        window: 9,
+        derivative_degree: 5,
+        row_stride: 1,
+        test_rows: 140,
+        ..config(XU)
+    };
+    let forgetting = Config {
+        window: 41,
+        memory: Some(2.0),
+        ..config(XV)
+    };
+    for config in [config(XV), forgetting, sums] {
+        let channels = config.channels;
+        let Ok(mut fresh) = Identifier::<f32, 128, 16, 3>::new(config) else {
+            panic!("valid");
+        };
+        let reference = models_of(&mut fresh, channels, 12_000);
+        let Ok(mut id) = Identifier::<f32, 128, 16, 3>::new(config) else {
+            panic!("valid");
+        };
+        let _ = models_of(&mut id, channels, 7_000);
+        id.forget();
+        assert!(id.model().is_none());
+        assert_eq!(id.counters(), &Counters::default());
+        assert_eq!(models_of(&mut id, channels, 12_000), reference);
+        id.forget();
+        assert_eq!(models_of(&mut id, channels, 12_000), reference);
+    }
+}
+
 #[test]
 fn an_empty_slot_is_not_configured() {
     let mut slot: Box<IdentifierSlot<f64, 64, 8, 1>> = Box::default();

@@ -14,6 +14,13 @@
 //!   [`Snapshot`] while rows go on at a higher priority; the model is, bit for bit, the one
 //!   the identifier would have made in place (`Identifier::push_with`), so the host's
 //!   `lssi identify` gives the device's model.
+//! - **Channels far from zero lose no bits**: each engine learns a reference per channel
+//!   from its first 1,024 finite rows ([`References`]: `lssi identify`'s rule, the mean when
+//!   it lies more than 3 ranges from zero; x and v, and a system's electrical channel). Rows
+//!   go to the identifier as they come until then; a channel far from zero then restarts
+//!   the identifier in place and every row from that one on is pushed less its reference.
+//!   `Health` carries the references (`reference`): the model is about the channels less
+//!   them. Channels about zero never restart anything.
 //! - **Ownership moves, nothing is shared mutably**: the one snapshot travels between the
 //!   identify task and thread mode as a `&'static mut` through two one-place mailboxes
 //!   (critical sections of a few instructions); counters are atomics.
@@ -24,6 +31,7 @@
 
 mod engine;
 mod flavour;
+mod reference;
 mod reporter;
 mod sampler;
 mod shared;
@@ -36,6 +44,7 @@ pub use engine::{Engine, IdentifyTask, Task};
 pub use flavour::{FromHost, Screening};
 #[cfg(doc)]
 use lssi_core::Snapshot;
+pub use reference::{REFERENCE_RANGES, REFERENCE_ROWS, References, Rule};
 pub use reporter::{Drift, Reporter};
 pub use sampler::{STUCK_RUN, Sampler, Schedule};
 pub use shared::{

@@ -84,6 +84,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
     buffer: [u8; MAX_DEVICE_FRAME_LEN],
     /// The latest model's frame (`Model` or `SystemModel`).
     latest: Option<DeviceMsg>,
+    /// The latest model's rows were taken less the references ([`Shared::reference`]).
+    latest_shifted: bool,
     config: Option<S::Config>,
     rate_hz: f32,
     /// The ADC's conversion rate, Hz, and the CIC order rows are decimated with (0.0: no
@@ -118,6 +120,8 @@ pub struct Reporter<const W: usize, const P: usize, const C: usize, S: Screening
         heapless::Vec<lssi_proto::TermCode, MAX_TERMS>,
         heapless::Vec<f32, MAX_TERMS>,
     )>,
+    /// That model's rows were taken less the references.
+    previous_shifted: bool,
     drift: Option<Drift>,
     windows: u32,
 }
@@ -130,6 +134,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             decoder: HostFrameDecoder::new(),
             buffer: [0; MAX_DEVICE_FRAME_LEN],
             latest: None,
+            latest_shifted: false,
             config: Some(config),
             rate_hz,
             adc_hz: 0.0,
@@ -149,6 +154,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             to_keep: None,
             duty: None,
             previous: None,
+            previous_shifted: false,
             drift: None,
             windows: 0,
         }
@@ -180,6 +186,7 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.duty = None;
         }
         self.previous = None;
+        self.previous_shifted = false;
         self.drift = None;
         self.windows = 0;
         shared.request_schedule(schedule);
@@ -280,13 +287,13 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         screened: impl FnOnce(),
     ) -> Result<(), L::Error> {
         self.watchdog = self.watchdog.wrapping_add(1);
-        if let Some((snapshot, cause, window)) = shared.take_full() {
+        if let Some((snapshot, cause, window, shifted)) = shared.take_full() {
             // A duty cycle's window makes a model every `model_every`-th time only: the
             // others end with Health alone, unscreened (their rows are in the identifier,
             // and the next model's snapshot is taken from it anew).
             let model = !window || self.models_this_window();
             if model {
-                self.screen(snapshot, cause, clock);
+                self.screen(snapshot, cause, shifted, clock);
             }
             critical_section::with(|cs| shared.free.borrow(cs).set(Some(snapshot)));
             screened();
@@ -332,7 +339,13 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
     /// Not inlined: its locals (the screening's factors and sweep, the model's frame) are
     /// on the stack only while it runs, not in the board's main loop's frame for good.
     #[inline(never)]
-    fn screen<K: Clock>(&mut self, snapshot: &mut S, cause: SnapshotCause, clock: &K) {
+    fn screen<K: Clock>(
+        &mut self,
+        snapshot: &mut S,
+        cause: SnapshotCause,
+        shifted: bool,
+        clock: &K,
+    ) {
         let start = clock.now();
         let made = snapshot.select();
         let spent = clock.now().wrapping_sub(start);
@@ -342,16 +355,17 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             self.screenings_run = self.screenings_run.wrapping_add(1);
         }
         if made {
-            self.take_model(snapshot, cause);
+            self.take_model(snapshot, cause, shifted);
         }
     }
 
     /// The snapshot's model as the latest message. Not inlined: the frame's message is
     /// built here, apart from the screening's locals.
     #[inline(never)]
-    fn take_model(&mut self, snapshot: &S, cause: SnapshotCause) {
+    fn take_model(&mut self, snapshot: &S, cause: SnapshotCause, shifted: bool) {
         if let Some(message) = snapshot.message(cause) {
             self.latest = Some(message);
+            self.latest_shifted = shifted;
         }
     }
 
@@ -371,6 +385,12 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
         let Some(DeviceMsg::Model(latest)) = self.latest.as_ref() else {
             return;
         };
+        // A model about other coordinates (the references were learnt since: the identifier
+        // restarted) has nothing to compare with: the drift starts again from this one.
+        if self.previous_shifted != self.latest_shifted {
+            self.previous = None;
+        }
+        self.previous_shifted = self.latest_shifted;
         let drift = match &self.previous {
             Some((terms, coefficients)) => {
                 let previous = ModelSnapshot {
@@ -549,6 +569,13 @@ impl<const W: usize, const P: usize, const C: usize, S: Screening> Reporter<W, P
             screenings_skipped: c.screenings_skipped.load(Ordering::Relaxed),
             sample_rate_hz: self.rate_hz,
             drift: self.drift.as_ref().map(crate::wire::drift_to_wire),
+            // Those of the latest model (a model screened from rows before the restart is
+            // about the raw channels); without a model, those subtracted now.
+            reference: if self.latest.is_some() && !self.latest_shifted {
+                None
+            } else {
+                shared.reference()
+            },
         }
     }
 

@@ -10,7 +10,7 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use critical_section::Mutex;
 use heapless::spsc::Queue;
 use lssi_core::Snapshot;
-use lssi_proto::SnapshotCause;
+use lssi_proto::{SnapshotCause, WireReference};
 
 /// Slots of the sample queue: it holds `QUEUE_SLOTS − 1` = 64 events.
 pub const QUEUE_SLOTS: usize = 65;
@@ -122,14 +122,18 @@ pub struct Shared<const P: usize, S: Screening = Snapshot<f32, P>> {
     pub(super) model_stride: AtomicU32,
     /// The identify task's figures: accepted, rejected, rows, screenings, buffer fill.
     pub(super) status: Mutex<Cell<Status>>,
+    /// The references the identify task subtracts from every row (set once, when it has
+    /// learnt them and one is not zero; `None` again at a configuration).
+    pub(super) reference: Mutex<Cell<Option<WireReference>>>,
 }
 
 /// A configuration for the identify task, with the time of row 0.
 pub(super) type Pending<S> = (<S as Screening>::Config, f64);
 
-/// A snapshot taken for a screening, with why it was taken and whether it ends a duty
-/// cycle's window.
-pub(super) type Taken<S> = (&'static mut S, SnapshotCause, bool);
+/// A snapshot taken for a screening, with why it was taken, whether it ends a duty cycle's
+/// window, and whether its rows were taken less the references ([`Shared::reference`]: its
+/// model is about the channels less them).
+pub(super) type Taken<S> = (&'static mut S, SnapshotCause, bool, bool);
 
 /// The identifier's figures as the identify task last published them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -183,6 +187,7 @@ impl<const P: usize, S: Screening> Shared<P, S> {
                 cost_max: 0,
                 ended: false,
             })),
+            reference: Mutex::new(Cell::new(None)),
         }
     }
 
@@ -257,6 +262,16 @@ impl<const P: usize, S: Screening> Shared<P, S> {
     /// The identify task's figures.
     pub fn status(&self) -> Status {
         critical_section::with(|cs| self.status.borrow(cs).get())
+    }
+
+    /// The references the identify task subtracts from every row (`None`: nothing is, or
+    /// not yet: see [`References`](super::References)).
+    pub fn reference(&self) -> Option<WireReference> {
+        critical_section::with(|cs| self.reference.borrow(cs).get())
+    }
+
+    pub(super) fn set_reference(&self, reference: Option<WireReference>) {
+        critical_section::with(|cs| self.reference.borrow(cs).set(reference));
     }
 
     pub(super) fn take_free(&self) -> Option<&'static mut S> {

@@ -7,6 +7,7 @@
 //! made in place, so that the host's f32 `SystemIdentifier` on the same rows gives the
 //! device's equations.
 
+use super::reference::{References, Rule};
 use super::{Clock, Event, Reading, Shared, Status, Task};
 use core::sync::atomic::Ordering;
 use heapless::spsc::Consumer;
@@ -30,6 +31,8 @@ pub struct SystemEngine<const W: usize, const P: usize, const C: usize> {
     cost_sum: u64,
     cost_count: u64,
     cost_max: u32,
+    /// The references taken off the channels, learnt from the first rows.
+    reference: References,
 }
 
 impl<const W: usize, const P: usize, const C: usize> Default for SystemEngine<W, P, C> {
@@ -52,6 +55,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
             cost_sum: 0,
             cost_count: 0,
             cost_max: 0,
+            reference: References::new(),
         }
     }
 
@@ -77,13 +81,36 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
         self.cost_sum = 0;
         self.cost_count = 0;
         self.cost_max = 0;
+        self.reference = References::new();
         Ok(())
     }
 
-    fn push(&mut self, index: u64, reading: Reading, shared: &Shared<P, SystemShot<P>>) {
+    /// The references subtracted from every row now (`None`: nothing is, or not yet: see
+    /// [`References`](super::References)).
+    pub fn reference(&self) -> Option<lssi_proto::WireReference> {
+        self.reference.subtracted()
+    }
+
+    /// The identifier started anew with its own configuration, in place
+    /// (`SystemIdentifier::forget`, as [`Engine`](super::Engine)'s). Not inlined (once a
+    /// configuration).
+    #[inline(never)]
+    fn restart(&mut self) {
+        if let Some(id) = self.slot.get_mut() {
+            id.forget();
+            self.fresh = true;
+        }
+    }
+
+    fn push(&mut self, index: u64, mut reading: Reading, shared: &Shared<P, SystemShot<P>>) {
+        if self.reference.take(&mut reading, Rule::System) {
+            self.restart();
+            shared.set_reference(self.reference.subtracted());
+        }
         let period = self.period;
         let offset = self.offset;
         let fresh = &mut self.fresh;
+        let shifted = self.reference.subtracted().is_some();
         let Some(id) = self.slot.get_mut() else {
             return;
         };
@@ -117,6 +144,7 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
                             snapshot,
                             SnapshotCause::Scheduled,
                             false,
+                            shifted,
                         )))
                     });
                 }
@@ -147,7 +175,13 @@ impl<const W: usize, const P: usize, const C: usize> SystemEngine<W, P, C> {
             snapshot.clear_model();
         }
         id.snapshot_into(snapshot);
-        critical_section::with(|cs| shared.full.borrow(cs).set(Some((snapshot, cause, window))));
+        let shifted = self.reference.subtracted().is_some();
+        critical_section::with(|cs| {
+            shared
+                .full
+                .borrow(cs)
+                .set(Some((snapshot, cause, window, shifted)))
+        });
         true
     }
 
@@ -192,6 +226,7 @@ impl<const W: usize, const P: usize, const C: usize> Task<P> for SystemEngine<W,
             critical_section::with(|cs| shared.pending.borrow(cs).take())
         {
             let _ = self.configure_at(config, offset);
+            shared.set_reference(None);
         }
         while let Some(event) = events.dequeue() {
             shared.counters.consumed.fetch_add(1, Ordering::Relaxed);

@@ -805,3 +805,299 @@ fn the_two_channel_instrument_reports_the_systems_own_models() {
         ]
     );
 }
+
+/// Amplitudes of `signal` (about 1.2) a recording far from zero is offset by.
+const FAR: f64 = 1.0e4 * 1.2;
+
+/// The model lssi-core's f32 identifier makes of rows `from..n` of `reading`, each less
+/// `reference` as the device takes it off (`(reading as f64 − reference) as f32`), with the
+/// rows' own times: what the device's identifier, restarted at row `from`, must report.
+fn model_from(n: u32, from: u32, reference: f64, reading: impl Fn(u32) -> f32) -> (Vec<f32>, u64) {
+    let mut id: Box<Identifier<f32, W, P, C>> = Box::new(Identifier::new(config()).expect("valid"));
+    for i in from..n {
+        let _ = id.push(Sample {
+            t: f64::from(i) * 0.01,
+            x: (f64::from(reading(i)) - reference) as f32,
+            v: None,
+            u: None,
+        });
+    }
+    assert!(id.screen());
+    let model = id.model().expect("a model");
+    (
+        model.coefficients[..model.terms.len()].to_vec(),
+        id.counters().accepted,
+    )
+}
+
+/// The device's final model and the references its last Health carries.
+fn final_model(
+    frames: &[DeviceMsg],
+) -> (lssi_proto::ModelSnapshot, Option<lssi_proto::WireReference>) {
+    let model = frames
+        .iter()
+        .rev()
+        .find_map(|m| match m {
+            DeviceMsg::Model(s) if s.cause == SnapshotCause::Final => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a final model");
+    let reference = match frames.last() {
+        Some(DeviceMsg::Health { reference, .. }) => *reference,
+        other => panic!("the last frame is {other:?}"),
+    };
+    (model, reference)
+}
+
+/// A recording 10⁴ amplitudes from zero: the device learns its reference from the first
+/// 1,024 rows (their mean, summed in f64), restarts its identifier at the 1,024th and
+/// pushes every row from there less it; its final model is, bit for bit, the identifier's
+/// on rows 1023.. less that reference, and its Health names the reference. Fed as they
+/// come (no reference), the same rows give another model: f32 keeps ≈ 10 bits of the
+/// motion at 1.2 · 10⁴.
+#[test]
+fn a_recording_far_from_zero_is_identified_less_its_first_rows_mean_from_its_1024th_row() {
+    let n = 5000;
+    let raw = |i: u32| (f64::from(signal(i)) + FAR) as f32;
+    let (frames, shared) = run(n, 32, 700, raw);
+    let reference = (0..1024).map(|i| f64::from(raw(i))).sum::<f64>() / 1024.0;
+    let (got, health_reference) = final_model(&frames);
+    assert_eq!(
+        health_reference,
+        Some(lssi_proto::WireReference {
+            x: reference,
+            v: 0.0,
+            e: 0.0
+        })
+    );
+    assert_eq!(shared.reference(), health_reference);
+    let (want, accepted) = model_from(n, 1023, reference, raw);
+    assert_eq!(
+        got.coefficients.to_vec(),
+        want,
+        "the model of rows 1023.. less the reference"
+    );
+    assert_eq!(got.samples, accepted);
+    assert_eq!(accepted, u64::from(n - 1023));
+    // Not the model of the raw rows, nor of every row less the reference.
+    assert_ne!(got.coefficients.to_vec(), model_from(n, 0, 0.0, raw).0);
+    assert_ne!(
+        got.coefficients.to_vec(),
+        model_from(n, 0, reference, raw).0
+    );
+}
+
+/// A recording about zero by the rule (an offset under 3 ranges of its first rows) never
+/// restarts: its final model is, bit for bit, the identifier's on every row as it came, and
+/// its Health names no reference.
+#[test]
+fn a_recording_about_zero_is_identified_as_it_comes() {
+    let n = 5000;
+    for offset in [0.0, 2.0] {
+        let reading = |i: u32| (f64::from(signal(i)) + offset) as f32;
+        let (frames, shared) = run(n, 32, 700, reading);
+        let (got, reference) = final_model(&frames);
+        assert_eq!(reference, None, "offset {offset}");
+        assert_eq!(shared.reference(), None);
+        let (want, accepted) = model_from(n, 0, 0.0, reading);
+        assert_eq!(got.coefficients.to_vec(), want, "offset {offset}");
+        assert_eq!(got.samples, u64::from(n));
+        assert_eq!(accepted, u64::from(n));
+    }
+}
+
+/// NaN rows before the 1,024th finite one are not counted: the reference is the mean of
+/// the first 1,024 finite rows, and the identifier restarts at the row that completes them.
+#[test]
+fn nan_rows_are_not_counted_among_the_first_rows() {
+    let n = 5000;
+    let raw = |i: u32| {
+        if i % 100 == 5 && i < 2000 {
+            f32::NAN
+        } else {
+            (f64::from(signal(i)) + FAR) as f32
+        }
+    };
+    let (frames, shared) = run(n, 32, 700, raw);
+    let finite: Vec<u32> = (0..n).filter(|&i| raw(i).is_finite()).take(1024).collect();
+    let from = *finite.last().expect("1,024 finite rows");
+    // 11 NaN rows (5, 105, …, 1005) before the 1,024th finite one.
+    assert_eq!(from, 1023 + 11);
+    let reference = finite.iter().map(|&i| f64::from(raw(i))).sum::<f64>() / 1024.0;
+    let (got, health_reference) = final_model(&frames);
+    assert_eq!(health_reference.map(|r| r.x), Some(reference));
+    let (want, accepted) = model_from(n, from, reference, raw);
+    assert_eq!(got.coefficients.to_vec(), want);
+    assert_eq!(got.samples, accepted);
+    // The NaN rows after the restart are rejected, as before.
+    assert_eq!(shared.status().rejected, 20 - 11);
+}
+
+/// The two-channel instrument on x and V each 10⁴ amplitudes from zero (a piezo harvester):
+/// the system's engine learns both references from the first 1,024 rows, restarts at the
+/// 1,024th, and its final model is, bit for bit, lssi-core's `SystemIdentifier` on rows
+/// 1023.. less them; the Health names both. (An x'' or V' of raw rows would lose most of
+/// f32's bits.)
+#[test]
+fn the_two_channel_instrument_takes_its_first_rows_means_off_x_and_v() {
+    use lssi_core::library::Electrical;
+    use lssi_core::{LibraryConfig, PolyFamily, SystemConfig, SystemIdentifier, SystemSample};
+    use lssi_device::standalone::{SystemEngine, SystemShot};
+    use lssi_device::system::system_snapshot;
+    use lssi_testkit::harvester::Piezo;
+
+    const C2: usize = 2;
+    let period = 0.01;
+    let config = SystemConfig {
+        base: Config {
+            sample_period: period,
+            window: 41,
+            derivative_degree: 5,
+            library: LibraryConfig {
+                poly_order: 3,
+                family: PolyFamily::All,
+                constant: true,
+                harmonics: 1,
+                input: false,
+            },
+            omega: 0.8,
+            screening_period: 3_000,
+            ..Config::default()
+        },
+        electrical: [Some(Electrical::Voltage), None],
+        coupling_order: 1,
+        displacements: 1,
+    };
+    let points = Piezo::bistable().simulate(10_000, period);
+    let far =
+        |values: &mut dyn Iterator<Item = f64>| 1.0e4 * values.fold(0.0f64, |m, q| m.max(q.abs()));
+    let (dx, de) = (
+        far(&mut points.iter().map(|p| p.x)),
+        far(&mut points.iter().map(|p| p.e)),
+    );
+    let readings: Vec<(f32, f32)> = points
+        .iter()
+        .map(|p| ((p.x + dx) as f32, (p.e + de) as f32))
+        .collect();
+
+    type Shared2 = Shared<P, SystemShot<P>>;
+    let shared: &'static Shared2 = Box::leak(Box::new(Shared::new()));
+    shared.give_snapshot(Box::leak(Box::new(SystemShot::snapshot())));
+    let queue: &'static mut EventQueue = Box::leak(Box::new(EventQueue::new()));
+    let (producer, consumer) = queue.split();
+    let mut sampler = Sampler::new(producer);
+    let engine: &'static mut SystemEngine<W, P, C2> = Box::leak(Box::new(SystemEngine::new()));
+    engine.configure_at(config, 0.0).expect("valid");
+    let identify: &'static IdentifyTask<W, P, C2, SystemEngine<W, P, C2>> =
+        Box::leak(Box::new(IdentifyTask::new()));
+    identify.give(engine, consumer);
+    let mut reporter: Reporter<W, P, C2, SystemShot<P>> = Reporter::new(config, 100.0, 0);
+    let clock = FakeClock(Cell::new(0));
+    let mut wire = Wire::default();
+    for (i, &(x, e)) in readings.iter().enumerate() {
+        clock.0.set(clock.0.get() + 10_000);
+        let reading = Reading {
+            x,
+            v: None,
+            u: None,
+            e: Some(e),
+        };
+        sampler.tick(clock.now(), reading, &shared.counters);
+        if i % 32 == 31 {
+            identify.run(shared, &clock);
+        }
+        if i % 500 == 499 {
+            let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+        }
+    }
+    assert!(sampler.end());
+    for _ in 0..4 {
+        identify.run(shared, &clock);
+        let Ok(()) = reporter.poll(shared, &mut wire, &clock, || {});
+    }
+    assert!(reporter.finished());
+    let frames = decode(&wire.0);
+
+    let mean = |f: fn(&(f32, f32)) -> f32| {
+        readings[..1024]
+            .iter()
+            .map(|r| f64::from(f(r)))
+            .sum::<f64>()
+            / 1024.0
+    };
+    let (rx, re) = (mean(|r| r.0), mean(|r| r.1));
+    let reference = match frames.last() {
+        Some(DeviceMsg::Health { reference, .. }) => *reference,
+        other => panic!("the last frame is {other:?}"),
+    };
+    assert_eq!(
+        reference,
+        Some(lssi_proto::WireReference {
+            x: rx,
+            v: 0.0,
+            e: re
+        })
+    );
+
+    let mut id: Box<SystemIdentifier<f32, W, P, 2, C2>> =
+        Box::new(SystemIdentifier::new(config).expect("valid"));
+    for (i, &(x, e)) in readings.iter().enumerate().skip(1023) {
+        let e = [(f64::from(e) - re) as f32];
+        let _ = id.push(&SystemSample {
+            x2: None,
+            v2: None,
+            t: i as f64 * period,
+            x: (f64::from(x) - rx) as f32,
+            v: None,
+            u: None,
+            electrical: &e,
+        });
+    }
+    assert!(id.screen());
+    let want = system_snapshot(id.model().expect("a model"), SnapshotCause::Final).expect("fits");
+    let got = frames
+        .iter()
+        .rev()
+        .find_map(|m| match m {
+            DeviceMsg::SystemModel(s) if s.cause == SnapshotCause::Final => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a final model");
+    assert_eq!(got.samples, (readings.len() - 1023) as u64);
+    assert_eq!(got, want, "the model of rows 1023.. less the references");
+}
+
+/// Duty-cycled windows on a displacement 10⁴ amplitudes from zero: the first window's model
+/// is of the raw rows (no reference yet, none reported); the references are learnt at row
+/// 1,023, in the second window, which restarts the identifier: its model is about x less
+/// the reference, the Health says so from then on, and the drift starts again there (a
+/// model in other coordinates has nothing to compare with), then measures the windows
+/// after as before.
+#[test]
+fn duty_cycled_windows_start_the_drift_again_at_the_restart() {
+    let x = duffing(9_000, |_| 4.0);
+    let far = |i: u32| (f64::from(x[i as usize]) + 1.0e4) as f32;
+    let (reports, frames) = windows(9_000, 10.0, 20.0, far);
+    assert_eq!(reports.len(), 3, "{reports:?}");
+    let samples: Vec<u64> = reports.iter().map(|(s, _)| *s).collect();
+    assert_eq!(samples, [1000, 2000 - 1023, 3000 - 1023]);
+    let references: Vec<Option<f64>> = frames
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Health { reference, .. } => Some(reference.map(|r| r.x)),
+            _ => None,
+        })
+        .collect();
+    // The first 1,024 rows: window 1's 1,000 (conversions 0..1000) and window 2's first 24
+    // (from conversion 3,000: windows every 30 s).
+    let first = (0..1000).chain(3000..3024);
+    let mean = first.map(|i| f64::from(far(i))).sum::<f64>() / 1024.0;
+    assert_eq!(references, [None, Some(mean), Some(mean)]);
+    // The drift starts again at the second window, and the third moves little from it.
+    assert_eq!(reports[0].1.relative, 0.0);
+    assert_eq!(reports[1].1.relative, 0.0, "{reports:?}");
+    assert!(
+        reports[2].1.relative > 0.0 && reports[2].1.relative < 0.05,
+        "{reports:?}"
+    );
+}

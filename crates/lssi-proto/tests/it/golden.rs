@@ -20,14 +20,20 @@ fn crc_is_crc32c() {
 
 #[test]
 fn golden_host_frames() {
-    assert_eq!(PROTOCOL_VERSION, 8, "update the README's worked examples");
+    assert_eq!(PROTOCOL_VERSION, 9, "update the README's worked examples");
+    assert_eq!(
+        frame(&HostMsg::Hello {
+            protocol_version: 9
+        }),
+        [0x01, 0x06, 0x09, 0x1E, 0xAC, 0xD3, 0x89, 0x00]
+    );
+    // Version-8, -7, -6 and -5 hosts' Hellos still read as such (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 8
         }),
         [0x01, 0x06, 0x08, 0x1D, 0x2F, 0xB8, 0x7B, 0x00]
     );
-    // Version-7, -6 and -5 hosts' Hellos still read as such (variant 0 is frozen).
     assert_eq!(
         frame(&HostMsg::Hello {
             protocol_version: 7

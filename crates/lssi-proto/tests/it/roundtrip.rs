@@ -357,6 +357,8 @@ fn health_carries_the_drift_since_version_7_and_a_version_6_peer_is_refused() {
     );
     let mut new = old.clone();
     new.push(0x00);
+    // (and version 9's reference, `None`)
+    new.push(0x00);
     let decoded = decode_frame::<DeviceMsg>(&mut frame_payload(&new)).expect("decodes");
     assert!(matches!(
         decoded,
@@ -369,12 +371,36 @@ fn health_carries_the_drift_since_version_7_and_a_version_6_peer_is_refused() {
     ));
     // So a version-6 device is refused at its HelloReply, with a sentence naming both
     // versions, before any Health of it is read.
-    assert_eq!(PROTOCOL_VERSION, 8);
+    assert_eq!(PROTOCOL_VERSION, 9);
     let mut reply = frame_payload(&[0x00, 6, 16, 0x80, 0x02, 24]);
     let error = decode_frame::<DeviceMsg>(&mut reply).expect_err("refused");
-    assert_eq!(error, Error::VersionMismatch { ours: 8, theirs: 6 });
+    assert_eq!(error, Error::VersionMismatch { ours: 9, theirs: 6 });
     assert_eq!(
         error.to_string(),
-        "the peer speaks lssi protocol version 6, but this build speaks version 8"
+        "the peer speaks lssi protocol version 6, but this build speaks version 9"
     );
+}
+
+#[test]
+fn health_carries_the_references_since_version_9_in_f64() {
+    // A version-8 Health (version 7's with `drift: None`) lacks the reference's byte.
+    let mut old = version_6_health_payload();
+    old.push(0x00);
+    assert_eq!(
+        decode_frame::<DeviceMsg>(&mut frame_payload(&old)),
+        Err(Error::Decode)
+    );
+    // With `Some` and three f64 appended it decodes, every bit of each reference kept (an
+    // ADC's mid-scale and a motion 10⁻⁴ of it).
+    let (x, v, e) = (2_048.000_123_456_789_f64, -1.0e4 - 1.0e-9, 1.65);
+    let mut new = old.clone();
+    new.push(0x01);
+    for r in [x, v, e] {
+        new.extend_from_slice(&r.to_le_bytes());
+    }
+    let decoded = decode_frame::<DeviceMsg>(&mut frame_payload(&new)).expect("decodes");
+    let DeviceMsg::Health { reference, .. } = decoded else {
+        panic!("a Health: {decoded:?}");
+    };
+    assert_eq!(reference, Some(lssi_proto::WireReference { x, v, e }));
 }

@@ -489,7 +489,26 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             })
         })?;
         self.taps.design(&design, |_| {});
-        let n = library.len();
+        self.library = library;
+        self.config = config;
+        self.start();
+        Ok(())
+    }
+
+    /// Forgets every sample, row, factor and model, keeping the configuration, its library
+    /// and its designed taps: afterwards the identifier is, bit for bit, what
+    /// [`SystemIdentifier::reconfigure`] with its own configuration makes, without designing
+    /// the taps again (as `Identifier::forget`).
+    pub fn forget(&mut self) {
+        self.start();
+    }
+
+    /// Sets every field but the configuration, the library and the taps for the
+    /// configuration: the state of a new identifier.
+    fn start(&mut self) {
+        let config = self.config;
+        let c = &config.base;
+        let n = self.library.len();
         let electrical = config.library().electrical_count();
         let displacements = usize::from(config.displacements);
         let equations = displacements + electrical;
@@ -497,7 +516,8 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         let row_period = c.sample_period * f64::from(c.row_stride);
         let lambda = c.memory.map_or(1.0, |tau| libm::exp(-row_period / tau));
         let sqrt_lambda_row = libm::sqrt(lambda);
-        self.sums = SystemTestRows::new(c.test_rows);
+        // The bump of sums of the same width is kept (the same bits as designed anew).
+        self.sums = SystemTestRows::new_with(c.test_rows, self.sums.bump_for(c.test_rows));
         // λ and the blocks count in rows, or in sums (one every L/4 rows); A's content at a
         // merge of a block of rows is two blocks old, at the start of a block of sums one.
         let (block_len, sqrt_lambda, blocks_old) = if self.sums.on() {
@@ -511,7 +531,6 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
             let len = (2 * c.window / stride).max(16) as u64;
             (len, sqrt_lambda_row, 2.0 * len as f64)
         };
-        self.library = library;
         for ring in self.rings.iter_mut() {
             ring.clear();
         }
@@ -544,8 +563,6 @@ impl<T: Real, const W: usize, const P: usize, const E: usize, const C: usize>
         self.sqrt_lambda_blocks = T::from_f64(power(sqrt_lambda, blocks_old));
         self.counters = Counters::default();
         self.has_model = false;
-        self.config = config;
-        Ok(())
     }
 
     /// The configuration.

@@ -348,6 +348,56 @@ fn an_f32_run_equals_itself() {
     }
 }
 
+/// `forget` keeps the configuration and its taps and forgets the rest: a used identifier
+/// forgotten (twice: the test-function sums' bump kept) gives the model of a new one, bit
+/// for bit.
+#[test]
+fn forgotten_gives_the_model_of_new_bit_for_bit() {
+    let p = Piezo::bistable();
+    let points = record(&p, SAMPLES / 4, 0.01, 21);
+    for c in [tuned(&points, false), config(41, false)] {
+        let want = identify::<f32>(c, &points);
+        let mut id: Box<SystemIdentifier<f32, 256, 16, 2, 3>> =
+            Box::new(SystemIdentifier::new(c).expect("a valid configuration"));
+        for _ in 0..2 {
+            for q in points.iter().take(points.len() / 2) {
+                let _ = id.push(&SystemSample {
+                    x2: None,
+                    v2: None,
+                    t: q[0],
+                    x: q[1] as f32,
+                    v: None,
+                    u: None,
+                    electrical: &[q[2] as f32],
+                });
+            }
+            id.forget();
+            assert!(id.model().is_none());
+            for q in &points {
+                id.push(&SystemSample {
+                    x2: None,
+                    v2: None,
+                    t: q[0],
+                    x: q[1] as f32,
+                    v: None,
+                    u: None,
+                    electrical: &[q[2] as f32],
+                })
+                .expect("a clean sample");
+            }
+            assert!(id.screen());
+            let got = id.model().expect("a model");
+            for (eg, ew) in got.equations.iter().zip(&want.equations) {
+                assert_eq!(
+                    eg.coefficients.map(f32::to_bits),
+                    ew.coefficients.map(f32::to_bits)
+                );
+            }
+            id.forget();
+        }
+    }
+}
+
 /// What the two-equation identifier takes in memory (printed for the record; the bound
 /// holds the design's figure).
 #[test]

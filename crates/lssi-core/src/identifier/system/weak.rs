@@ -35,15 +35,28 @@ impl<T: Real, const P: usize, const E: usize> SystemTestRows<T, P, E> {
     }
 
     /// Sums of width `width` (a multiple of 4, at least 8; 0: off), empty.
+    #[cfg(test)]
     pub(super) fn new(width: u16) -> Self {
+        Self::new_with(width, None)
+    }
+
+    /// [`SystemTestRows::new`] with the bump of this width already designed (`Some`: from
+    /// [`SystemTestRows::bump_for`], the same bits as designing it again).
+    pub(super) fn new_with(width: u16, bump: Option<Bump<T>>) -> Self {
         Self {
             width: u32::from(width),
             quarter: u32::from(width) / 4,
             phase: 0,
-            bump: Bump::new(width),
+            bump: bump.unwrap_or_else(|| Bump::new(width)),
             columns: [[T::ZERO; P]; 4],
             targets: [[T::ZERO; E]; 4],
         }
+    }
+
+    /// The bump, when these sums have width `width` (> 0): configuring anew with the same
+    /// width need not design it again (see `crate::weak::TestRows::bump_for`).
+    pub(super) fn bump_for(&self, width: u16) -> Option<Bump<T>> {
+        (width > 0 && self.width == u32::from(width)).then_some(self.bump)
     }
 
     /// Whether the sums are on.

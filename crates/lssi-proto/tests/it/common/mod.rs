@@ -242,6 +242,7 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                 any::<u8>(),
                 any::<u8>()
             )),
+            proptest::option::of((-1.0e9f64..1.0e9, -1.0e9f64..1.0e9, -1.0e9f64..1.0e9)),
         )
             .prop_map(
                 |(
@@ -256,6 +257,7 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                         sample_rate_hz,
                     ),
                     drift,
+                    reference,
                 )| DeviceMsg::Health {
                     samples,
                     rejected,
@@ -287,6 +289,7 @@ pub fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                             }
                         }
                     ),
+                    reference: reference.map(|(x, v, e)| lssi_proto::WireReference { x, v, e }),
                 },
             ),
         vec(any::<u8>(), 0..=MAX_LOG).prop_map(|bytes| DeviceMsg::Log {
@@ -464,6 +467,11 @@ pub fn worst_device_msgs() -> Vec<DeviceMsg> {
                 largest: f32::MAX,
                 largest_term: u8::MAX,
                 support_changes: u8::MAX,
+            }),
+            reference: Some(lssi_proto::WireReference {
+                x: f64::MAX,
+                v: f64::MAX,
+                e: f64::MAX,
             }),
         },
         DeviceMsg::Log {
