@@ -113,7 +113,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             report.take_refined(&check);
             // Judged on the refined path only: --no-refine prints the device's model as it
             // computes it.
-            contradicted = quality::prediction_misses(driven, &check)
+            contradicted = quality::prediction_diverges(&check)
+                .or_else(|| quality::prediction_misses(driven, &check))
                 .or_else(|| quality::unresolved_damping(&check))
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))
                 .or_else(|| crate::identify::periodic::misses_periodic(driven, &check))
