@@ -113,7 +113,7 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             report.take_refined(&check);
             // Judged on the refined path only: --no-refine prints the device's model as it
             // computes it.
-            contradicted = quality::prediction_diverges(&check)
+            contradicted = quality::prediction_diverges(driven, &check)
                 .or_else(|| quality::prediction_misses(driven, &check))
                 .or_else(|| quality::unresolved_damping(&check))
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))

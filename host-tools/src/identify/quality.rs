@@ -392,8 +392,21 @@ fn white_noise_percent(x: &[f64], sd: f64) -> Option<f64> {
 /// 9.49 v + 2.15e9 x³ + 3.51e5 x·v² − 0.69 sin + 4.05 cos(84.45t)` (truth `−1923 x − 3.43 v −
 /// 5.34e9 x³ + 5.51 cos`) with exit 0 and "not refined: the streaming model's prediction
 /// diverges on the held-out half". The sentence, or `None`.
-pub fn prediction_diverges(check: &crate::identify::refine::Check) -> Option<String> {
-    (check.prediction.is_none() && check.held_out[0].is_none() && check.horizon.samples >= 16)
+///
+/// Only on a record without left-out samples: a window across a gap the refinement steps over
+/// (a stuck sensor's 2,000 rows left out) can diverge where the model does not.
+pub fn prediction_diverges(
+    recording: &Recording,
+    check: &crate::identify::refine::Check,
+) -> Option<String> {
+    let gaps = crate::identify::blemish::Scan::of(recording)
+        .skip
+        .iter()
+        .any(|s| *s);
+    (!gaps
+        && check.prediction.is_none()
+        && check.held_out[0].is_none()
+        && check.horizon.samples >= 16)
         .then(|| {
             format!(
                 "the printed model's simulation diverges over the held-out half, in windows of {} samples each started from a state fitted there: it does not explain the recording",
