@@ -159,23 +159,28 @@ fn refine_tone(t: &[f64], u: &[f64], guess: f64) -> f64 {
         yy - a * yc - b * ys
     };
     let width = 2.0 * std::f64::consts::PI / (t[n - 1] - t0);
-    let (mut a, mut b) = (guess - 0.5 * width, guess + 0.5 * width);
+    golden_min(rss, guess - 0.5 * width, guess + 0.5 * width, 60)
+}
+
+/// The minimum of `f` on `lo..hi` by golden-section search, `iterations` steps.
+fn golden_min(f: impl Fn(f64) -> f64, lo: f64, hi: f64, iterations: usize) -> f64 {
+    let (mut a, mut b) = (lo, hi);
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (rss(c), rss(d));
-    for _ in 0..60 {
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iterations {
         if fc < fd {
             b = d;
             d = c;
             fd = fc;
             c = b - g * (b - a);
-            fc = rss(c);
+            fc = f(c);
         } else {
             a = c;
             c = d;
             fc = fd;
             d = a + g * (b - a);
-            fd = rss(d);
+            fd = f(d);
         }
     }
     0.5 * (a + b)
@@ -332,26 +337,7 @@ pub fn tone(t: &[f64], u: &[f64]) -> Option<f64> {
         re * re + im * im
     };
     let width = 2.0 * PI / (t[n - 1] - t[0]);
-    let (mut a, mut b) = (guess - width, guess + width);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut pc, mut pd) = (power(c), power(d));
-    for _ in 0..40 {
-        if pc > pd {
-            b = d;
-            d = c;
-            pd = pc;
-            c = b - g * (b - a);
-            pc = power(c);
-        } else {
-            a = c;
-            c = d;
-            pc = pd;
-            d = a + g * (b - a);
-            pd = power(d);
-        }
-    }
-    let omega = 0.5 * (a + b);
+    let omega = golden_min(|w| -power(w), guess - width, guess + width, 40);
     // A tone of amplitude A holds A²/2 of the variance, and |Σ|² ≈ (n A / 2)².
     let share = 2.0 * power(omega) / (n as f64 * n as f64) / variance;
     (omega > 0.0 && share >= TONE_SHARE).then_some(omega)
