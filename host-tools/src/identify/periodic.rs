@@ -343,6 +343,114 @@ pub fn tone(t: &[f64], u: &[f64]) -> Option<f64> {
     (omega > 0.0 && share >= TONE_SHARE).then_some(omega)
 }
 
+/// Segments of the record (after the first [`LOCK_SKIPPED`], a transient's) over which x's
+/// line at u's tone is followed by [`unforced_lock`].
+pub const LOCK_SEGMENTS: usize = 8;
+/// Leading segments [`unforced_lock`] leaves out: a start's transient.
+pub const LOCK_SKIPPED: usize = 2;
+/// The least share of x's variance that x's line at u's tone holds in every segment for x
+/// to move with u ([`unforced_lock`]).
+pub const LOCK_SHARE: f64 = 0.5;
+/// The largest departure (rad) of that line's phase in a segment from its mean over the
+/// segments for x to be locked to u ([`unforced_lock`]): an autonomous oscillation whose
+/// frequency misses u's by a part in a thousand drifts by 0.2 rad over 30 periods.
+pub const LOCK_PHASE: f64 = 0.2;
+
+/// The phase atan2(b, a) of `x`'s line `a cos(ωt) + b sin(ωt)` over a stretch, and the share
+/// of x's variance (about its mean) the line holds; `None` with under 16 samples.
+fn line(t: &[f64], x: &[f64], omega: f64) -> Option<(f64, f64)> {
+    let n = t.len().min(x.len());
+    if n < 16 {
+        return None;
+    }
+    let mean = x[..n].iter().sum::<f64>() / n as f64;
+    let (mut cc, mut ss, mut cs, mut yc, mut ys, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (s, c) = (omega * t[i]).sin_cos();
+        let y = x[i] - mean;
+        cc += c * c;
+        ss += s * s;
+        cs += c * s;
+        yc += y * c;
+        ys += y * s;
+        yy += y * y;
+    }
+    let det = cc * ss - cs * cs;
+    if !(det > 0.0 && yy > 0.0) {
+        return None;
+    }
+    let a = (yc * ss - ys * cs) / det;
+    let b = (ys * cc - yc * cs) / det;
+    let share = (a * yc + b * ys) / yy;
+    Some((b.atan2(a), share))
+}
+
+/// Whether x moves locked to a recorded u's steady tone while the printed model (`check`'s)
+/// has neither u nor a harmonic of Ω: an autonomous oscillation cannot keep a phase with u
+/// (any difference of frequency drifts it), so such a model holds an orbit of its own that
+/// only resembles the forced one over the held-out windows. Fresh hostile 22288 (a hardening
+/// single well forced through u at 7.2 samples a period, 0.2 % noise, x only) printed
+/// `x'' = −113 x − 1.02e8 x³` for `−262 x − 0.72 v − 1.0e8 x³ + u`: at the steady orbit's
+/// amplitude that conservative well oscillates at u's frequency, and it predicted the
+/// held-out windows at the noise (0.20 %) while its free run parted from the record by 163 %.
+/// x moves with u when, over each of [`LOCK_SEGMENTS`] segments but the first
+/// [`LOCK_SKIPPED`], its line at u's tone holds [`LOCK_SHARE`] of its variance at a phase
+/// within [`LOCK_PHASE`] of the segments' mean. The sentence, or `None`.
+pub fn unforced_lock(recording: &Recording, check: &Check) -> Option<String> {
+    let u = recording.u.as_ref()?;
+    let forced = check
+        .model
+        .terms
+        .iter()
+        .any(|(t, c)| *c != 0.0 && matches!(t, Term::Input | Term::Sin(_) | Term::Cos(_)));
+    if forced {
+        return None;
+    }
+    let keep: Vec<usize> = (0..recording.len())
+        .filter(|&i| recording.t[i].is_finite() && u[i].is_finite() && recording.x[i].is_finite())
+        .collect();
+    let t: Vec<f64> = keep.iter().map(|&i| recording.t[i]).collect();
+    let us: Vec<f64> = keep.iter().map(|&i| u[i]).collect();
+    let xs: Vec<f64> = keep.iter().map(|&i| recording.x[i]).collect();
+    let omega = refine_tone(&t, &us, tone(&t, &us)?);
+    let size = t.len() / LOCK_SEGMENTS;
+    let mut phases = Vec::new();
+    let mut least_share = f64::INFINITY;
+    for k in LOCK_SKIPPED..LOCK_SEGMENTS {
+        let range = k * size..(k + 1) * size;
+        let (phase, share) = line(&t[range.clone()], &xs[range], omega)?;
+        least_share = least_share.min(share);
+        phases.push(phase);
+    }
+    let (s, c) = phases
+        .iter()
+        .fold((0.0, 0.0), |(s, c), p| (s + p.sin(), c + p.cos()));
+    let centre = s.atan2(c);
+    let departure = phases
+        .iter()
+        .map(|p| {
+            let d = (p - centre).rem_euclid(std::f64::consts::TAU);
+            d.min(std::f64::consts::TAU - d)
+        })
+        .fold(0.0, f64::max);
+    if std::env::var_os("LSSI_PERIODIC_DEBUG").is_some() {
+        eprintln!(
+            "lssi: periodic: x at u's tone {omega:.6} rad/s: least share {least_share:.3}, phase departure {departure:.3} rad"
+        );
+    }
+    (least_share >= LOCK_SHARE && departure <= LOCK_PHASE).then(|| {
+        let free = check
+            .free_run
+            .map(|f| format!(" (its free run parts from the record by an NRMSE of {:.0} %)", f.nrmse_percent))
+            .unwrap_or_default();
+        format!(
+            "x moves locked to u's tone at {omega:.4} rad/s (its line there holds at least {:.0} % of x's variance in each of {} segments, at a phase steady to {departure:.2} rad), but the model has no u term: an oscillation of its own cannot keep a phase with u, so it only resembles the forced one over short windows{free} and is not this harvester's equation (a record with more of its transient, or with larger swings, tells the terms apart)",
+            100.0 * least_share,
+            LOCK_SEGMENTS - LOCK_SKIPPED
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -115,6 +115,8 @@ pub fn identify(recording: &Recording, options: &Options, refine: Refine) -> Out
             // computes it.
             contradicted = quality::prediction_diverges(driven, &check)
                 .or_else(|| quality::prediction_misses(driven, &check))
+                .or_else(|| crate::identify::periodic::unforced_lock(recording, &check))
+                .or_else(|| quality::misses_first_half(&check))
                 .or_else(|| quality::unresolved_damping(&check))
                 .or_else(|| quality::unresolved_streaming_term(&check, report.omega))
                 .or_else(|| crate::identify::periodic::misses_periodic(driven, &check))

@@ -35,6 +35,7 @@ mod resolved;
 mod spikes;
 mod standard_errors;
 mod stdin_input;
+mod steady_orbits;
 mod stream;
 mod stream_gate;
 mod stuck;
