@@ -376,7 +376,8 @@ pub struct EvehArgs {
     /// Single well (D > 0) or double well (D < 0).
     #[arg(long, value_enum, default_value_t = EvehOptions::default().wells)]
     pub wells: Wells,
-    /// Excitation: fixed frequency F cos(Ωt), or a linear sweep from --omega to --sweep-to.
+    /// Excitation: fixed frequency F cos(Ωt), a linear sweep from --omega to --sweep-to, or
+    /// broadband (random-phase tones from --omega to --sweep-to, the RMS of F cos(Ωt)).
     #[arg(long, value_enum, default_value_t = EvehOptions::default().excitation)]
     pub excitation: Excitation,
     /// Excitation acceleration amplitude F, m/s².
@@ -387,7 +388,8 @@ pub struct EvehArgs {
     #[arg(long, value_name = "RAD_PER_S", default_value_t = EvehOptions::default().omega,
           allow_negative_numbers = true)]
     pub omega: f64,
-    /// End of the sweep, rad/s (with --excitation sweep).
+    /// End of the sweep, or the top of the broadband excitation's band, rad/s (with
+    /// --excitation sweep or random).
     #[arg(long = "sweep-to", value_name = "RAD_PER_S",
           default_value_t = EvehOptions::default().sweep_to, allow_negative_numbers = true)]
     pub sweep_to: f64,

@@ -109,6 +109,26 @@ pub enum Excitation {
     Fixed,
     /// F cos(φ(t)) with the frequency rising linearly from Ω to `sweep_to`.
     Sweep,
+    /// Broadband: [`RANDOM_TONES`] tones evenly spaced from Ω to `sweep_to`, each of amplitude
+    /// F/√K at a phase drawn from `seed` (a random-phase multisine: Gaussian-like, the same
+    /// RMS as F cos(Ωt)).
+    Random,
+}
+
+/// Tones of [`Excitation::Random`].
+pub const RANDOM_TONES: usize = 48;
+
+/// The phase of tone `k` of [`Excitation::Random`] for `seed`, radians in [0, 2π): SplitMix64
+/// of the two (portable and value-stable).
+fn random_phase(seed: u64, k: usize) -> f64 {
+    let mut z = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(k as u64)
+        .wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    std::f64::consts::TAU * (z >> 11) as f64 / (1u64 << 53) as f64
 }
 
 /// Which physical parameter drifts.
@@ -315,7 +335,7 @@ impl EvehOptions {
         }
         require_finite("amplitude", self.amplitude)?;
         require_positive("omega", self.omega)?;
-        if self.excitation == Excitation::Sweep {
+        if self.excitation != Excitation::Fixed {
             require_positive("sweep_to", self.sweep_to)?;
         }
         if !(self.delta.is_finite() && self.delta >= 0.0) {
@@ -385,19 +405,27 @@ impl EvehOptions {
         c
     }
 
-    /// The excitation phase φ(t), radians.
+    /// The excitation phase φ(t), radians (of the first tone for [`Excitation::Random`]).
     pub fn phase(&self, t: f64) -> f64 {
         match self.excitation {
-            Excitation::Fixed => self.omega * t,
+            Excitation::Fixed | Excitation::Random => self.omega * t,
             Excitation::Sweep => {
                 self.omega * t + (self.sweep_to - self.omega) * t * t / (2.0 * self.t_end)
             }
         }
     }
 
-    /// The excitation acceleration F cos(φ(t)), m/s².
+    /// The excitation acceleration, m/s²: F cos(φ(t)), or the broadband sum of
+    /// [`Excitation::Random`].
     pub fn excitation_at(&self, t: f64) -> f64 {
-        self.amplitude * self.phase(t).cos()
+        if self.excitation != Excitation::Random {
+            return self.amplitude * self.phase(t).cos();
+        }
+        let step = (self.sweep_to - self.omega) / (RANDOM_TONES - 1) as f64;
+        self.amplitude / (RANDOM_TONES as f64).sqrt()
+            * (0..RANDOM_TONES)
+                .map(|k| ((self.omega + step * k as f64) * t + random_phase(self.seed, k)).cos())
+                .sum::<f64>()
     }
 
     /// x'' of eq. (19), f(t, x, x').

@@ -24,6 +24,7 @@ mod offsets;
 mod orbits;
 mod plot;
 mod quality;
+mod random_forcing;
 mod ranges;
 mod recording;
 mod refine_supports;

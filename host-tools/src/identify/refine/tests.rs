@@ -331,3 +331,22 @@ fn the_selection_bar_is_bonferronis_over_the_library() {
     assert_eq!(selection_bar(1), SIGNIFICANT_SE);
     assert!((2..40).all(|m| selection_bar(m + 1) > selection_bar(m)));
 }
+
+/// A window alone in missing counts as its neighbours do; a run of missed windows counts
+/// in full.
+#[test]
+fn contiguous_error_caps_a_lone_window_and_keeps_a_run() {
+    let lone = Windows {
+        rss: vec![1.0, 1.0, 100.0, 1.0, 1.0],
+        samples: 5,
+        sd: 1.0,
+    };
+    assert!((lone.contiguous_nrmse_percent() - 100.0).abs() < 1e-9);
+    assert!(lone.nrmse_percent() > 400.0);
+    let run = Windows {
+        rss: vec![100.0, 100.0, 1.0, 1.0, 1.0],
+        samples: 5,
+        sd: 1.0,
+    };
+    assert!((run.contiguous_nrmse_percent() - run.nrmse_percent()).abs() < 1e-9);
+}
