@@ -894,6 +894,17 @@ fn identify_about_zero(
             }
         }
     }
+    // x integrated from v is about its mean: a double well's x'' about its centre of
+    // symmetry where that predicts as well (symmetric.rs). Not with --no-refine, which
+    // prints the device's model as it computes it.
+    if quality.passed()
+        && !no_refine
+        && data.x_from_v.is_some()
+        && let Some((symmetric, q)) = symmetric::recentre(&report, &quality, data)
+    {
+        report = symmetric;
+        quality = q;
+    }
     report.warnings.extend(quality.warnings.iter().cloned());
     if !quality.passed() {
         // A stabilised model that still fails: what to try (stable.rs).
