@@ -139,24 +139,8 @@ fn refine_tone(t: &[f64], u: &[f64], guess: f64) -> f64 {
     // The residual of u − mean fitted by a cos + b sin at ω (the mean's correction
     // neglected: a tone over tens of periods averages to nearly nothing).
     let rss = |w: f64| {
-        let (mut cc, mut ss, mut cs, mut yc, mut ys, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for i in 0..n {
-            let (s, c) = (w * (t[i] - t0)).sin_cos();
-            let y = u[i] - mean;
-            cc += c * c;
-            ss += s * s;
-            cs += c * s;
-            yc += y * c;
-            ys += y * s;
-            yy += y * y;
-        }
-        let det = cc * ss - cs * cs;
-        if !(det > 0.0) {
-            return yy;
-        }
-        let a = (yc * ss - ys * cs) / det;
-        let b = (ys * cc - yc * cs) / det;
-        yy - a * yc - b * ys
+        let fit = sine_fit(&t[..n], &u[..n], mean, w, t0);
+        fit.total - fit.explained
     };
     let width = 2.0 * std::f64::consts::PI / (t[n - 1] - t0);
     golden_min(rss, guess - 0.5 * width, guess + 0.5 * width, 60)
@@ -356,18 +340,21 @@ pub const LOCK_SHARE: f64 = 0.5;
 /// frequency misses u's by a part in a thousand drifts by 0.2 rad over 30 periods.
 pub const LOCK_PHASE: f64 = 0.2;
 
-/// The phase atan2(b, a) of `x`'s line `a cos(ωt) + b sin(ωt)` over a stretch, and the share
-/// of x's variance (about its mean) the line holds; `None` with under 16 samples.
-fn line(t: &[f64], x: &[f64], omega: f64) -> Option<(f64, f64)> {
-    let n = t.len().min(x.len());
-    if n < 16 {
-        return None;
-    }
-    let mean = x[..n].iter().sum::<f64>() / n as f64;
+/// `y − mean` over a stretch fitted by `a cos(ω(t − t0)) + b sin(ω(t − t0))` by least squares.
+struct SineFit {
+    a: f64,
+    b: f64,
+    /// The sum of squares the fit explains (0 when the fit is singular).
+    explained: f64,
+    /// The sum of squares of `y − mean`.
+    total: f64,
+}
+
+fn sine_fit(t: &[f64], y: &[f64], mean: f64, omega: f64, t0: f64) -> SineFit {
     let (mut cc, mut ss, mut cs, mut yc, mut ys, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for i in 0..n {
-        let (s, c) = (omega * t[i]).sin_cos();
-        let y = x[i] - mean;
+    for (t, y) in t.iter().zip(y) {
+        let (s, c) = (omega * (t - t0)).sin_cos();
+        let y = y - mean;
         cc += c * c;
         ss += s * s;
         cs += c * s;
@@ -376,13 +363,35 @@ fn line(t: &[f64], x: &[f64], omega: f64) -> Option<(f64, f64)> {
         yy += y * y;
     }
     let det = cc * ss - cs * cs;
-    if !(det > 0.0 && yy > 0.0) {
-        return None;
+    if !(det > 0.0) {
+        return SineFit {
+            a: 0.0,
+            b: 0.0,
+            explained: 0.0,
+            total: yy,
+        };
     }
     let a = (yc * ss - ys * cs) / det;
     let b = (ys * cc - yc * cs) / det;
-    let share = (a * yc + b * ys) / yy;
-    Some((b.atan2(a), share))
+    SineFit {
+        a,
+        b,
+        explained: a * yc + b * ys,
+        total: yy,
+    }
+}
+
+/// The phase atan2(b, a) of `x`'s line `a cos(ωt) + b sin(ωt)` over a stretch (t from 0, so
+/// that stretches compare), and the share of x's variance (about its mean) the line holds;
+/// `None` with under 16 samples or no variance.
+fn line(t: &[f64], x: &[f64], omega: f64) -> Option<(f64, f64)> {
+    let n = t.len().min(x.len());
+    if n < 16 {
+        return None;
+    }
+    let mean = x[..n].iter().sum::<f64>() / n as f64;
+    let fit = sine_fit(&t[..n], &x[..n], mean, omega, 0.0);
+    (fit.total > 0.0).then(|| (fit.b.atan2(fit.a), fit.explained / fit.total))
 }
 
 /// Whether x moves locked to a recorded u's steady tone while the printed model (`check`'s)

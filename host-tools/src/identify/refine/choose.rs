@@ -45,7 +45,7 @@ pub struct Check {
     pub paired: Option<Paired>,
     /// The reported model's prediction error over the first half (the one it was fitted on),
     /// in windows of the comparison's length, each from its fitted state (its NRMSE with a
-    /// window alone in missing capped at its neighbours', `Windows::contiguous_nrmse_percent`):
+    /// window alone in missing capped at its neighbours', `Windows::contiguous`):
     /// a model that only the record's steady part admits misses a transient there
     /// ([`crate::identify::quality::misses_first_half`]).
     pub first_half: Option<Fit>,
@@ -997,10 +997,7 @@ pub fn refine_and_check_among(model: &SimModel, candidates: &Candidates, data: &
         (vec![], vec![])
     };
     let prediction = window_errors(&model, &held, length).map(|w| w.fit());
-    let first_half = window_errors(&model, &train, length).map(|w| Fit {
-        nrmse_percent: w.contiguous_nrmse_percent(),
-        rms: w.rms(),
-    });
+    let first_half = window_errors(&model, &train, length).map(|w| w.contiguous().fit());
     if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
         eprintln!(
             "lssi: first half {:?} held-out {:?}",

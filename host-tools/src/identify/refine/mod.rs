@@ -363,23 +363,22 @@ impl Windows {
         100.0 * each.get(each.len() / 2).copied().unwrap_or(f64::NAN) / self.sd
     }
 
-    /// NRMSE over all windows, %, each window's residual capped at the larger of its
-    /// neighbours': a window alone in missing (a state fit caught in a local minimum, one
-    /// chaotic stretch) counts as its neighbours do, while a run of windows that a model
-    /// misses (a transient it does not follow) counts in full.
-    pub fn contiguous_nrmse_percent(&self) -> f64 {
-        let n = self.rss.len();
-        let capped: f64 = (0..n)
+    /// The windows with each one's residual capped at the larger of its neighbours': a
+    /// window alone in missing (a state fit caught in a local minimum, one chaotic stretch)
+    /// counts as its neighbours do, while a run of windows that a model misses (a transient
+    /// it does not follow) counts in full.
+    pub fn contiguous(&self) -> Windows {
+        let rss = (0..self.rss.len())
             .map(|i| {
                 let left = i.checked_sub(1).map(|j| self.rss[j]);
                 let right = self.rss.get(i + 1).copied();
-                match left.into_iter().chain(right).reduce(f64::max) {
-                    Some(neighbour) => self.rss[i].min(neighbour),
-                    None => self.rss[i],
-                }
+                left.into_iter()
+                    .chain(right)
+                    .reduce(f64::max)
+                    .map_or(self.rss[i], |neighbour| self.rss[i].min(neighbour))
             })
-            .sum();
-        100.0 * (capped / self.samples.max(1) as f64).sqrt() / self.sd
+            .collect();
+        Windows { rss, ..*self }
     }
 
     /// As a [`Fit`].

@@ -341,12 +341,12 @@ fn contiguous_error_caps_a_lone_window_and_keeps_a_run() {
         samples: 5,
         sd: 1.0,
     };
-    assert!((lone.contiguous_nrmse_percent() - 100.0).abs() < 1e-9);
+    assert!((lone.contiguous().nrmse_percent() - 100.0).abs() < 1e-9);
     assert!(lone.nrmse_percent() > 400.0);
     let run = Windows {
         rss: vec![100.0, 100.0, 1.0, 1.0, 1.0],
         samples: 5,
         sd: 1.0,
     };
-    assert!((run.contiguous_nrmse_percent() - run.nrmse_percent()).abs() < 1e-9);
+    assert!((run.contiguous().nrmse_percent() - run.nrmse_percent()).abs() < 1e-9);
 }
