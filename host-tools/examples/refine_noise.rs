@@ -112,7 +112,7 @@ fn main() {
                     x: &recording.x,
                     u: None,
                 };
-                let candidates = Candidates::of(&report);
+                let candidates = Candidates::of(&report, [0.0, 0.0]);
                 let check = refine::refine_and_check_among(&streaming, &candidates, &data);
                 let omega = generated.generated.truth.omega;
                 let s = score(&streaming, &truth, omega);

@@ -114,9 +114,13 @@ def test_bad_options_and_files_are_value_errors(tmp_path):
     with pytest.raises(ValueError, match="bad.csv"):
         lssi.identify(bad)
     # Too little signal for a model: the identifier's own sentence.
-    with pytest.raises(ValueError, match="too few samples to estimate the excitation frequency"):
+    with pytest.raises(ValueError, match="x is constant"):
         lssi.Model().fit(np.zeros(200), dt=0.01)
-    with pytest.raises(ValueError, match="array: no model: 200 samples were accepted"):
+    with pytest.raises(ValueError, match="only 70 samples, too few to estimate the excitation"):
+        lssi.Model().fit(np.sin(np.arange(70) * 0.3), dt=0.01)
+    with pytest.raises(ValueError, match="array: no model: 70 samples were accepted"):
+        lssi.Model(omega=1.0).fit(np.sin(np.arange(70) * 0.3), dt=0.01)
+    with pytest.raises(ValueError, match="x is constant"):
         lssi.Model(omega=1.0).fit(np.zeros(200), dt=0.01)
 
 

@@ -278,6 +278,11 @@ pub fn configure(
         noise_correction: options.noise_correction,
         ..Config::default()
     };
+    // A row every fourth sample saves a device's time on a long record; a record of a few
+    // hundred samples needs every one (its 64 warm-up rows and both halves' rows).
+    if source.len() < 128 * usize::from(config.row_stride) {
+        config.row_stride = 1;
+    }
     let mut estimated = false;
     if config.library.harmonics > 0 {
         config.omega = match options.omega {
@@ -293,9 +298,15 @@ pub fn configure(
             None => {
                 estimated = true;
                 // A broken time axis is named as such, not as a reason to give --omega.
-                estimate_omega(recording, &config).map_err(|e| {
-                    time_axis(recording).map_or(e, |why| IdentifyError(format!("{file}: {why}")))
-                })?
+                match estimate_omega(recording, &config) {
+                    Ok(w) => w,
+                    // A constant x has no frequency: any Ω, and the gate names the constant.
+                    Err(_) if crate::identify::quality::constant(recording).is_some() => 1.0,
+                    Err(e) => {
+                        return Err(time_axis(recording)
+                            .map_or(e, |why| IdentifyError(format!("{file}: {why}"))));
+                    }
+                }
             }
         };
     }

@@ -18,7 +18,13 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
     )
     .map_err(|e| IdentifyError(format!("{file}: {e}.")))?;
     let n = config.window;
-    let stride = 4usize;
+    // Every fourth window on a long record; on a short one (a few periods, a few hundred
+    // samples) every window, so that the scan still has rows to fit.
+    let stride = if recording.t.len().saturating_sub(n) / 4 >= 128 {
+        4
+    } else {
+        1
+    };
     let library: Library<TERM_CAPACITY> = Library::new(&LibraryConfig {
         harmonics: 0,
         input: false,
@@ -65,6 +71,13 @@ pub fn estimate_omega(recording: &Recording, config: &Config) -> Result<f64, Ide
             places.push((start + clean.missing_before(start)) / stride);
         }
         start += stride;
+    }
+    if rows.len() < 64 && recording.t.len() < 128 + n {
+        // Too short for the identifier as well: --omega would not help.
+        return Err(IdentifyError(format!(
+            "{file}: only {} samples, too few to estimate the excitation frequency or to identify a model (the identifier needs a few hundred at least); record longer.",
+            recording.t.len()
+        )));
     }
     if rows.len() < 64 {
         return Err(IdentifyError(format!(

@@ -49,7 +49,22 @@ impl Candidates {
     /// in the sweep's order (dense to sparse), then the selected support with each term of
     /// the densest solution it lacks, each once; the derivative window and degree the
     /// identifier chose, for their starts.
-    pub fn of(report: &Report) -> Self {
+    ///
+    /// `scales` are x's and v's RMS about their means on the recording (0 when unknown): an
+    /// offset counts as making a term only when the term it makes is at least [`ORIGIN_SHARE`]
+    /// of the one it comes from.
+    pub fn of(report: &Report, scales: [f64; 2]) -> Self {
+        let relative = |k: usize| {
+            let (o, s) = (report.offsets[k], scales[k]);
+            if s.is_finite() && s > 0.0 {
+                (o / s).abs()
+            } else if o != 0.0 {
+                1.0
+            } else {
+                0.0
+            }
+        };
+        let relative = [relative(0), relative(1)];
         let streaming: Vec<Term> = report
             .model
             .iter()
@@ -77,7 +92,7 @@ impl Candidates {
                 && !supports.contains(&support)
                 && !added
                     .iter()
-                    .any(|&t| made_by_the_origin(t, &streaming, report.offsets))
+                    .any(|&t| made_by_the_origin(t, &streaming, relative))
             {
                 supports.push(support);
             }
@@ -98,7 +113,7 @@ impl Candidates {
                 // cos(kΩt) is a phase (see `refine::choose`), u and the constant stay anyway.
                 if !matches!(term, Term::Monomial { px, pv } if px + pv == 1)
                     || streaming.contains(&term)
-                    || made_by_the_origin(term, &streaming, report.offsets)
+                    || made_by_the_origin(term, &streaming, relative)
                 {
                     continue;
                 }
@@ -128,24 +143,41 @@ impl Candidates {
 /// estimates them) by shedding exactly such terms, and refinement keeps that origin: a term
 /// it made would be the origin refitted as a term (on data/paper-eq17.csv, x·v beside x²·v
 /// at offsets of 10⁻³, 15 standard errors from zero and a 1.4 % better held-out error, where
-/// the truth has no x·v). Only for an offset the identifier found (nonzero).
-fn made_by_the_origin(term: Term, streaming: &[Term], offsets: [f64; 2]) -> bool {
+/// the truth has no x·v). Only for an offset the identifier found (nonzero), and only where
+/// the shift makes a share of the term it comes from: `relative` holds each offset over its
+/// channel's RMS, and x^a·v^b with (x − c, v − d) makes C(a,k)·C(b,l)·(c/x_rms)^(a−k)·
+/// (d/v_rms)^(b−l) of itself in x^k·v^l, which must reach [`ORIGIN_SHARE`] (issue 25,
+/// hostile seed 22684: a v offset 1.2·10⁻³ of v's RMS barred x as made from x·v², a share of
+/// 1.4·10⁻⁶, and the refinement never tried the truth's x in place of x·v²).
+fn made_by_the_origin(term: Term, streaming: &[Term], relative: [f64; 2]) -> bool {
     let (px, pv) = match term {
         Term::Constant => (0, 0),
         Term::Monomial { px, pv } => (px, pv),
         _ => return false,
     };
+    let binomial = |n: u8, k: u8| -> f64 {
+        (0..k).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1))
+    };
     streaming.iter().any(|&s| {
         let Term::Monomial { px: sx, pv: sv } = s else {
             return false;
         };
-        (sx, sv) != (px, pv)
-            && px <= sx
-            && pv <= sv
-            && (sx == px || offsets[0] != 0.0)
-            && (sv == pv || offsets[1] != 0.0)
+        if (sx, sv) == (px, pv) || px > sx || pv > sv {
+            return false;
+        }
+        let share = binomial(sx, px)
+            * binomial(sv, pv)
+            * relative[0].powi(i32::from(sx - px))
+            * relative[1].powi(i32::from(sv - pv));
+        share >= ORIGIN_SHARE
     })
 }
+
+/// The least share of a term that a shift of the origin must make of another for that other
+/// to count as the shift's doing ([`made_by_the_origin`]): the share of x'''s RMS below which
+/// backward elimination drops a term as negligible
+/// ([`crate::identify::refine::NEGLIGIBLE_SHARE`]).
+pub const ORIGIN_SHARE: f64 = 1e-4;
 
 /// The library term named `name` at base frequency `omega` (the names of
 /// [`crate::identify::terms`]): constants, monomials up to degree 9, harmonics up to the 16th
@@ -317,6 +349,9 @@ mod tests {
         assert!(made_by_the_origin(m(2, 0), &[m(2, 1)], [0.0, 1e-3]));
         // No offset found: the origin is the recording's, and nothing is its doing.
         assert!(!made_by_the_origin(m(1, 1), &streaming, [0.0, 0.0]));
+        // A v offset of 1.2e-3 of v's RMS makes 2.4e-3 of x·v² in x·v but 1.4e-6 in x.
+        assert!(made_by_the_origin(m(1, 1), &[m(1, 2)], [0.0, 1.2e-3]));
+        assert!(!made_by_the_origin(m(1, 0), &[m(1, 2)], [0.0, 1.2e-3]));
     }
 
     #[test]

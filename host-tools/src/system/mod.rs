@@ -1295,7 +1295,13 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
         report.note = "not refined: the model has a term the simulator does not know; this is the streaming system identifier's model".into();
         return;
     };
-    match refine::refine_and_check(&sim, data, report.omega, report.sample_period) {
+    match refine::refine_and_check(
+        &sim,
+        data,
+        report.omega,
+        report.sample_period,
+        report.omega_estimated,
+    ) {
         Some((Some(refined), info)) => {
             let streaming: Vec<Vec<f64>> = report
                 .equations
@@ -1303,6 +1309,25 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
                 .map(|e| e.terms.iter().map(|t| t.coef).collect())
                 .collect();
             report.take_refined(&refined);
+            // Ω refined with the coefficients: the harmonics named at the refined Ω (a
+            // coupling's reaction on the motion is a small share of x'', and the phase drift
+            // of an Ω estimated 2·10⁻⁵ off moved it by 29 %: issue 26, hostile-system seed
+            // 10558).
+            if let Some((factor, _)) = refined.omega_factor
+                && factor.is_finite()
+                && factor > 0.0
+            {
+                report.omega *= factor;
+                for (e, eq) in report.equations.iter_mut().zip(&refined.sim.equations) {
+                    for (t, (term, _)) in e.terms.iter_mut().zip(eq) {
+                        if matches!(term, simulate::SimTerm::Sin(_) | simulate::SimTerm::Cos(_)) {
+                            t.term = term
+                                .name_in(&refined.sim.electrical, refined.sim.displacements)
+                                .to_string();
+                        }
+                    }
+                }
+            }
             if !refine::improved(&info) {
                 widen_unbacked(report, &streaming);
             }
@@ -1331,9 +1356,10 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
                     String::new()
                 } else {
                     format!(
-                        "; {} dropped, each under {:.0} of its standard errors from 0 and the held-out prediction no worse without",
+                        "; {} dropped, each under {:.0} of its standard errors from 0 or under {:.0e} of its equation's RMS, and the held-out prediction no worse without",
                         info.dropped.join(", "),
-                        crate::identify::refine::SIGNIFICANT_SE
+                        crate::identify::refine::SIGNIFICANT_SE,
+                        crate::identify::refine::NEGLIGIBLE_SHARE
                     )
                 },
                 info.held_out_refined_percent,
@@ -1421,9 +1447,15 @@ pub fn widen_by_x_integration(
         return;
     }
     let n = data.recording.len();
-    let Some(alt) =
-        refine::refine_observing(sim, data, report.omega, report.sample_period, (0, n), false)
-    else {
+    let Some(alt) = refine::refine_observing(
+        sim,
+        data,
+        report.omega,
+        report.sample_period,
+        (0, n),
+        false,
+        false,
+    ) else {
         return;
     };
     widen_to_other(

@@ -10,6 +10,7 @@ mod cli;
 mod common;
 mod eveh;
 mod failures_cli;
+mod fresh_sets;
 mod gate;
 mod generate;
 mod harvester;

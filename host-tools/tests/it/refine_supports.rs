@@ -52,7 +52,8 @@ fn the_term_the_streaming_selection_lost_at_10_percent_noise_is_recovered() {
         x: &recording.x,
         u: None,
     };
-    let check = refine::refine_and_check_among(&streaming, &Candidates::of(&report), &data);
+    let check =
+        refine::refine_and_check_among(&streaming, &Candidates::of(&report, [0.0, 0.0]), &data);
     assert_eq!(check.chosen, Chosen::Refined, "{}", check.reason);
     // The true support, no more and no less, each coefficient within 5 % (mean within 2 %).
     let refined = named(&check.model);

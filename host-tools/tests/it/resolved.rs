@@ -102,9 +102,11 @@ fn a_kept_streaming_term_within_two_standard_errors_withholds_the_model() {
 
 /// A bistable electromagnetic harvester with an inductive coil (i recorded, τ = 5 ms), 0 %
 /// noise: printed x'' = … − 2.50 v + 243.5 i with i' = 0.5 v − 200 i (truth −1.26 v − 250 i):
-/// the coupling's pair of one sign, a beam fed by its circuit.
+/// the coupling's pair of one sign, a beam fed by its circuit. Withheld for it since; with Ω
+/// refined beside the coefficients (twenty-second session) the refinement reaches the truth
+/// itself (a negligible x·v² at 4·10⁻⁹ of x'' dropped), and that is what is printed.
 #[test]
-fn a_coupling_that_feeds_the_beam_withholds_the_system() {
+fn a_coupling_that_fed_the_beam_is_refined_to_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let path = generate(
         dir.path(),
@@ -133,7 +135,23 @@ fn a_coupling_that_feeds_the_beam_withholds_the_system() {
             "inductive",
         ],
     );
-    assert_withheld(&path, "the coupling is not a passive harvester's");
+    let (code, out) = identify_json(&path, &[]);
+    assert_eq!(code, 0, "{out:?}");
+    let out = out.unwrap();
+    let printed = crate::common::equations(&out);
+    let want = crate::common::equations(&crate::common::truth(&path));
+    for (target, terms) in &want {
+        let got = &printed[target];
+        let names = |t: &crate::common::Terms| t.keys().cloned().collect::<Vec<_>>();
+        assert_eq!(names(got), names(terms), "{target}: {out}");
+        for (name, (w, _)) in terms {
+            let c = got[name].0;
+            assert!(
+                ((c - w) / w).abs() < 1e-3,
+                "{target} {name}: {c} against {w}"
+            );
+        }
+    }
 }
 
 /// A hard-driven single well (x and u each at 5 % noise, 79 samples a forcing period, 105

@@ -147,8 +147,14 @@ fn an_unconfirmed_model_of_integrated_velocity_is_withheld() {
         "--seed",
         "9910",
     ]);
+    // Withheld as unconfirmed (x integrated), or, with Ω refined beside the coefficients,
+    // for the sine the streaming model kept beside the forcing's cosine: 0.8 of its ± on the
+    // whole record.
     if let Some(stderr) = withheld {
-        assert!(stderr.contains("integrated"), "{stderr}");
+        assert!(
+            stderr.contains("integrated") || stderr.contains("does not determine the terms"),
+            "{stderr}"
+        );
     }
 }
 

@@ -78,9 +78,9 @@ mod summary;
 mod tests;
 
 pub use choose::{
-    Check, Chosen, ESCAPE_RANGES, Horizon, NOT_WORSE_Z, PREDICTABLE_NRMSE_PERCENT, Paired,
-    SIGNIFICANT_SE, SUPPORT_PARSIMONY, Tried, Z_BETTER, refine_and_check, refine_and_check_among,
-    refine_recording, selection_bar,
+    Check, Chosen, ESCAPE_RANGES, Horizon, NEGLIGIBLE_SHARE, NOT_WORSE_Z, NUMERICAL_NRMSE_PERCENT,
+    PREDICTABLE_NRMSE_PERCENT, Paired, SIGNIFICANT_SE, SUPPORT_PARSIMONY, Tried, Z_BETTER,
+    refine_and_check, refine_and_check_among, refine_recording, selection_bar,
 };
 pub use summary::{Candidate, Summary, SupportChange, TermSummary};
 
