@@ -1300,7 +1300,10 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
         data,
         report.omega,
         report.sample_period,
-        report.omega_estimated,
+        // Not with x integrated from v: its drift removal leaves a slow phase error that a
+        // free Ω follows into the damping/coupling split (hostile-system seeds 10315 and
+        // 10543, v alone: −638 i for −250 at ± 17).
+        report.omega_estimated && data.x_from_v.is_none(),
     ) {
         Some((Some(refined), info)) => {
             let streaming: Vec<Vec<f64>> = report
