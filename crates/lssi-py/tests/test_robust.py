@@ -199,7 +199,7 @@ def test_other_arguments_are_type_checked():
 # -- sentences name Python arguments, not the command's flags --------------------------------
 def test_errors_name_python_arguments_not_flags():
     with pytest.raises(ValueError) as e:
-        lssi.Model().fit(np.zeros(200), dt=0.01)
+        lssi.Model().fit(np.exp(-np.arange(2000) * 0.01), dt=0.01)
     assert "give omega=… (rad/s)." in str(e.value) and "--" not in str(e.value)
     seconds, x, _ = recording()
     with pytest.raises(ValueError) as e:
