@@ -1316,11 +1316,9 @@ pub fn refine_report(report: &mut SystemReport, data: &SystemData) {
             // coupling's reaction on the motion is a small share of x'', and the phase drift
             // of an Ω estimated 2·10⁻⁵ off moved it by 29 %: issue 26, hostile-system seed
             // 10558).
-            if let Some((factor, _)) = refined.omega_factor
-                && factor.is_finite()
-                && factor > 0.0
-            {
-                report.omega *= factor;
+            let omega = refine::refined_omega(&sim, &refined.sim, report.omega);
+            if omega != report.omega {
+                report.omega = omega;
                 for (e, eq) in report.equations.iter_mut().zip(&refined.sim.equations) {
                     for (t, (term, _)) in e.terms.iter_mut().zip(eq) {
                         if matches!(term, simulate::SimTerm::Sin(_) | simulate::SimTerm::Cos(_)) {

@@ -108,8 +108,6 @@ pub struct Refined {
     pub iterations: usize,
     /// RMS weighted residual.
     pub weighted_rms: f64,
-    /// Ω's factor over the start's and its standard error, when Ω was refined too.
-    pub omega_factor: Option<(f64, f64)>,
 }
 
 /// The least-squares problem over samples `[from, to)` of a recording.
@@ -592,17 +590,12 @@ pub fn refine_observing(
     for (&(e, j), v) in p.slots.iter().zip(&variances) {
         standard_errors[e][j] = v.max(0.0).sqrt();
     }
-    let omega_factor = p.free_omega.then(|| {
-        let k = p.slots.len();
-        (best.c[k], variances[k].max(0.0).sqrt())
-    });
     Some(Refined {
         sim: refined,
         standard_errors,
         segments: best.starts.len(),
         iterations,
         weighted_rms: (best.cost / best.samples.max(1) as f64).sqrt(),
-        omega_factor,
     })
 }
 
@@ -695,16 +688,7 @@ pub fn refine_and_check(
     let whole = if taken {
         first
             .as_ref()
-            .and_then(|f| {
-                refine(&f.sim, data, omega, dt, (0, n), free_omega).map(|mut w| {
-                    // Ω's factor over the streaming model's: the first half's times the
-                    // whole record's.
-                    if let (Some((a, _)), Some((b, se))) = (f.omega_factor, w.omega_factor) {
-                        w.omega_factor = Some((a * b, a * se));
-                    }
-                    w
-                })
-            })
+            .and_then(|f| refine(&f.sim, data, omega, dt, (0, n), free_omega))
             .or(first)
     } else {
         None
@@ -811,13 +795,9 @@ fn eliminate(
                 .0
                 .name_in(&sim.electrical, sim.displacements)
         );
-        let Some(mut next) = refine(&fewer, data, omega, dt, (0, n / 2), free_omega) else {
+        let Some(next) = refine(&fewer, data, omega, dt, (0, n / 2), free_omega) else {
             break;
         };
-        // Ω's factor over the streaming model's, through the chain.
-        if let (Some((a, _)), Some((b, se))) = (current.omega_factor, next.omega_factor) {
-            next.omega_factor = Some((a * b, a * se));
-        }
         let score = held_out_percent(&next.sim, data, omega, dt, periods).unwrap_or(f64::INFINITY);
         let mut names = names.clone();
         names.push(name);
@@ -898,6 +878,22 @@ fn negligible_term(sim: &SystemSim, data: &SystemData, dt: f64) -> Option<(usize
         })
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .map(|(e, j, _)| (e, j))
+}
+
+/// The base frequency of `refined`'s harmonics, given `streaming`'s (`omega`) and the same
+/// terms in it: the first harmonic's frequency scaled as the refinement scaled it (Ω is a
+/// parameter of the refinement where it was estimated, [`Problem::sim`]).
+pub fn refined_omega(streaming: &SystemSim, refined: &SystemSim, omega: f64) -> f64 {
+    let frequency = |s: &SystemSim| {
+        s.equations.iter().flatten().find_map(|(t, _)| match t {
+            SimTerm::Sin(w) | SimTerm::Cos(w) => Some(*w),
+            _ => None,
+        })
+    };
+    match (frequency(streaming), frequency(refined)) {
+        (Some(a), Some(b)) if a > 0.0 && b > 0.0 => omega * b / a,
+        _ => omega,
+    }
 }
 
 /// How many terms backward elimination drops at most ([`eliminate`]).

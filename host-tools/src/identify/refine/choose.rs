@@ -1389,11 +1389,6 @@ pub fn refine_recording(
 /// x's and v's RMS about their means over the samples `keep` (v as recorded, or x's
 /// differences over t): the scales [`Candidates::of`] holds the sensor offsets to.
 fn channel_scales(recording: &crate::recording::Recording, keep: &[usize]) -> [f64; 2] {
-    let rms = |values: &[f64]| {
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        (values.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>() / n).sqrt()
-    };
     let x: Vec<f64> = keep.iter().map(|&i| recording.x[i]).collect();
     let v: Vec<f64> = match &recording.v {
         Some(v) => keep
@@ -1409,7 +1404,13 @@ fn channel_scales(recording: &crate::recording::Recording, keep: &[usize]) -> [f
             })
             .collect(),
     };
-    let scale = |c: &[f64]| if c.len() >= 2 { rms(c) } else { 0.0 };
+    let scale = |c: &[f64]| {
+        if c.len() >= 2 {
+            crate::identify::stretch::rms(c)
+        } else {
+            0.0
+        }
+    };
     [scale(&x), scale(&v)]
 }
 
