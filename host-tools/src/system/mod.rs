@@ -1238,10 +1238,17 @@ pub fn repair(
         // repair starts from rests on differentiated rows, and its ± are far narrower than
         // what the record allows for a damping against a coupling (`lssi gen electromagnetic
         // --seed 44`: refinement not taken, the refit printed V −0.309 ± 0.002, truth −0.25).
+        let debug = std::env::var_os("LSSI_REFINE_DEBUG").is_some();
         if next.model != "refined" {
+            if debug {
+                eprintln!("repair: {} not taken ({})", next.model, next.note);
+            }
             return None;
         }
         let q = quality::assess(&next, data);
+        if debug {
+            eprintln!("repair: refined, gate failures {:?}", q.failures);
+        }
         if q.passed() {
             next.warnings.extend(added);
             return Some((next, q));
