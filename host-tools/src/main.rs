@@ -24,7 +24,8 @@ enum Command {
     Gen(generate::GenArgs),
     /// Benchmarks that print tables (accuracy on the paper's eq. 17, throughput).
     Bench(bench::BenchArgs),
-    /// Identify the equation of motion x'' = f(x, v, t) of a recording (CSV).
+    /// Identify the equation of motion x'' = f(x, v, t, u) of a recording (CSV), or a
+    /// harvester's system (x'' and V' or i') when it has a voltage or current column.
     Identify(identify::IdentifyArgs),
     /// Read a recording (CSV) and summarise it, or say why it cannot be used.
     Info(info::InfoArgs),

@@ -31,7 +31,7 @@ pub enum Quantise {
 /// Arguments of `lssi identify`.
 #[derive(Debug, Clone, Args)]
 pub struct IdentifyArgs {
-    /// The recording: CSV with a header row naming at least t and x.
+    /// The recording: CSV with a header row naming t and x (or v alone, integrated), and optionally u, V or i.
     #[arg(value_name = "FILE.csv")]
     pub file: PathBuf,
     /// More recordings (or folders, each meaning its *.csv files): identified in parallel on

@@ -326,8 +326,15 @@ pub fn read_if_system(
         ))),
         None => Ok(has(default).then(|| default.to_owned())),
     };
-    let voltage = pick(&electrical.voltage, "V", "--V-col")?;
-    let current = pick(&electrical.current, "i", "--i-col")?;
+    let mut voltage = pick(&electrical.voltage, "V", "--V-col")?;
+    let mut current = pick(&electrical.current, "i", "--i-col")?;
+    // A column named as people name a voltage or a current ('Voltage', 'voltage_V', 'I',
+    // 'current_A'), with no 'V' or 'i' and no flag: read as the electrical channel, and said
+    // (it had been left out in silence, and x'' printed with the coupling in its damping).
+    if voltage.is_none() && current.is_none() {
+        voltage = look_alike(path, &header, Electrical::Voltage)?;
+        current = look_alike(path, &header, Electrical::Current)?;
+    }
     if voltage.is_none() && current.is_none() {
         let two =
             columns.x.contains(',') || (columns.x == "x" && !has("x") && has("x1") && has("x2"));
@@ -341,6 +348,54 @@ pub fn read_if_system(
         return Ok(None);
     }
     read_system(path, &header, columns, voltage, current).map(Some)
+}
+
+/// The one column of `header` named as a voltage (`Voltage`, `voltage_V`, `volts`, `v_load`)
+/// or a current (`I`, `Current`, `current_A`, `i_load`) is, for `kind`, said on stderr; an
+/// error when several are.
+fn look_alike(
+    path: &Path,
+    header: &[String],
+    kind: Electrical,
+) -> Result<Option<String>, CliError> {
+    let like = |h: &str| {
+        let l = h.to_ascii_lowercase();
+        match kind {
+            Electrical::Voltage => {
+                l.starts_with("voltage")
+                    || ["volt", "volts", "v_load", "vload", "v_out", "vout"].contains(&l.as_str())
+            }
+            Electrical::Current => {
+                h == "I"
+                    || l.starts_with("current")
+                    || ["i_load", "iload", "amps"].contains(&l.as_str())
+            }
+        }
+    };
+    let found: Vec<&String> = header.iter().filter(|h| like(h)).collect();
+    let (flag, what) = match kind {
+        Electrical::Voltage => ("--V-col", "the voltage across the load"),
+        Electrical::Current => ("--i-col", "the current"),
+    };
+    match found.as_slice() {
+        [] => Ok(None),
+        [one] => {
+            eprintln!(
+                "lssi: note: {}: reading {what} from column '{one}' (a system: x'' and {}'; name another with {flag}).",
+                path.display(),
+                kind.symbol()
+            );
+            Ok(Some((*one).clone()))
+        }
+        many => Err(CliError::Input(format!(
+            "{}: columns {} each look like {what}; name the one to use with {flag}.",
+            path.display(),
+            many.iter()
+                .map(|h| format!("'{h}'"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
+    }
 }
 
 /// Reads every column the system needs.

@@ -305,6 +305,45 @@ fn the_text_report_prints_each_equation_on_its_own_line() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("no column 'Vload'"), "{err}");
+    // A voltage column named as people name it ('Voltage') is read as V, and said; two such
+    // columns are an input error naming both.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let (head, body) = text.split_once('\n').unwrap();
+    let renamed = dir.path().join("named.csv");
+    std::fs::write(
+        &renamed,
+        format!("{}\n{body}", head.replace(",V,", ",Voltage,")),
+    )
+    .unwrap();
+    let out = lssi(&[
+        "identify",
+        renamed.to_str().unwrap(),
+        "--json",
+        "--no-refine",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("reading the voltage across the load from column 'Voltage'"),
+        "{err}"
+    );
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["equations"][1]["target"], "V'", "{json}");
+    let twice = dir.path().join("twice.csv");
+    std::fs::write(
+        &twice,
+        format!(
+            "{}\n{body}",
+            head.replace(",V,", ",voltage_V,").replace(",u", ",Volts")
+        ),
+    )
+    .unwrap();
+    let out = lssi(&["identify", twice.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("columns 'voltage_V', 'Volts' each look like the voltage"),
+        "{err}"
+    );
 }
 
 #[test]
