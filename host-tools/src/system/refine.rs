@@ -599,6 +599,10 @@ pub fn refine_observing(
     })
 }
 
+/// A held-out segment over this many times the median segment's NRMSE is an outlier
+/// ([`held_out_percent`]).
+pub const OUTLIER_FACTOR: f64 = 10.0;
+
 /// The held-out measure of `sim` on the record's second half: segments of `periods` periods
 /// (eight: the long pass's), each simulated from its own initial state fitted with the
 /// coefficients fixed, and the RMS of the weighted residual over them, % (the mean
@@ -633,8 +637,42 @@ pub fn held_out_percent(
                 .map_or((f64::INFINITY, 1), |f| (f.cost, f.samples))
         })
         .collect();
-    let cost: f64 = each.iter().map(|e| e.0).sum();
-    let samples: usize = each.iter().map(|e| e.1).sum();
+    // A segment whose error is over OUTLIER_FACTOR times the median segment's is left out
+    // (at most one in eight): near a double well's saddle, a model close to the truth can
+    // fit a segment's start into the other well, and that one segment's error then outweighs
+    // all the others (`lssi gen electromagnetic --electrical i --coil inductive --wells
+    // bistable --delta 0.01 --seed 1`: one of 39 segments at 73.8 %, the others at 1.07 %,
+    // where the streaming model was 1.5-2.6 % on each; 11.7 % against 1.47 % pooled).
+    let per = |e: &(f64, usize)| e.0 / e.1.max(1) as f64;
+    let mut sorted: Vec<f64> = each.iter().map(per).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[(sorted.len() - 1) / 2];
+    let outliers = each
+        .iter()
+        .filter(|e| per(e) > OUTLIER_FACTOR * OUTLIER_FACTOR * median)
+        .count();
+    let kept: Vec<&(f64, usize)> = if outliers > 0 && outliers <= each.len() / 8 {
+        each.iter()
+            .filter(|e| !(per(e) > OUTLIER_FACTOR * OUTLIER_FACTOR * median))
+            .collect()
+    } else {
+        each.iter().collect()
+    };
+    if std::env::var_os("LSSI_HELDOUT_DEBUG").is_some() {
+        eprintln!(
+            "held-out segments: {} of {}, the worst {:?}",
+            kept.len(),
+            each.len(),
+            sorted
+                .iter()
+                .rev()
+                .take(3)
+                .map(|c| 100.0 * c.sqrt())
+                .collect::<Vec<_>>()
+        );
+    }
+    let cost: f64 = kept.iter().map(|e| e.0).sum();
+    let samples: usize = kept.iter().map(|e| e.1).sum();
     Some(100.0 * (cost / samples.max(1) as f64).sqrt())
 }
 
@@ -685,6 +723,11 @@ pub fn refine_and_check(
             && super::quality::free_run_bounded(&f.sim, data) == Some(true)
     });
     let taken = refined_score <= streaming_score * (1.0 + NOT_WORSE) || rescued;
+    if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
+        eprintln!(
+            "system refinement: held-out {refined_score:.4} % refined against {streaming_score:.4} % streaming over segments of {periods} periods; rescued {rescued}; taken {taken}"
+        );
+    }
     let whole = if taken {
         first
             .as_ref()
@@ -752,7 +795,7 @@ fn eliminate(
     for _ in 0..MAX_DROPS {
         let (current, _, names) = chain.last().expect("the chain starts with one");
         let sim = &current.sim;
-        let least = sim
+        let candidates: Vec<(usize, usize, f64)> = sim
             .equations
             .iter()
             .enumerate()
@@ -763,14 +806,25 @@ fn eliminate(
                     .filter(move |_| active > 1)
                     .map(move |(j, (t, c))| (e, j, *t, *c))
             })
-            .filter(|&(_, _, t, c)| {
-                c != 0.0 && !matches!(t, SimTerm::Monomial(p) if p.iter().sum::<u8>() == 1)
-            })
+            .filter(|&(e, _, t, c)| c != 0.0 && !standard_form(sim, e, t))
             .filter_map(|(e, j, _, c)| {
                 let se = current.standard_errors[e][j];
                 (se.is_finite() && se > 0.0).then_some((e, j, c.abs() / se))
             })
+            .collect();
+        let least = candidates
+            .iter()
+            .copied()
             .min_by(|a, b| a.2.total_cmp(&b.2));
+        // Every term under one standard error goes at once, where an equation keeps at
+        // least two terms: a chaotic record's selection keeps up to eight such (`lssi gen
+        // electromagnetic --electrical i --coil inductive --wells bistable --delta 0.01`,
+        // seeds 1-3 and 7), more than one at a time can drop.
+        let weak: Vec<(usize, usize)> = candidates
+            .iter()
+            .filter(|c| c.2 < 1.0)
+            .map(|c| (c.0, c.1))
+            .collect();
         if std::env::var_os("LSSI_REFINE_DEBUG").is_some() {
             eprintln!(
                 "system elimination: dropped {names:?} held-out {:.3} %, least significant {least:?}, coefficients {:?} ± {:?}",
@@ -779,28 +833,45 @@ fn eliminate(
                 current.standard_errors
             );
         }
-        let Some((e, j)) = least
-            .filter(|l| l.2 < SIGNIFICANT_SE)
-            .map(|l| (l.0, l.1))
-            .or_else(|| negligible_term(sim, data, dt))
-        else {
-            break;
-        };
         let mut fewer = sim.clone();
-        fewer.equations[e][j].1 = 0.0;
-        let name = format!(
-            "{}'s {}",
-            target_name(sim, e),
-            fewer.equations[e][j]
-                .0
-                .name_in(&sim.electrical, sim.displacements)
-        );
+        let keeps_two = |f: &SystemSim| {
+            f.equations
+                .iter()
+                .all(|eq| eq.iter().filter(|(_, c)| *c != 0.0).count() >= 2)
+        };
+        let drop: Vec<(usize, usize)> = if weak.len() > 1 && {
+            for &(e, j) in &weak {
+                fewer.equations[e][j].1 = 0.0;
+            }
+            keeps_two(&fewer)
+        } {
+            weak
+        } else {
+            fewer = sim.clone();
+            let Some((e, j)) = least
+                .filter(|l| l.2 < SIGNIFICANT_SE)
+                .map(|l| (l.0, l.1))
+                .or_else(|| negligible_term(sim, data, dt))
+            else {
+                break;
+            };
+            fewer.equations[e][j].1 = 0.0;
+            vec![(e, j)]
+        };
+        let mut names = names.clone();
+        for &(e, j) in &drop {
+            names.push(format!(
+                "{}'s {}",
+                target_name(sim, e),
+                sim.equations[e][j]
+                    .0
+                    .name_in(&sim.electrical, sim.displacements)
+            ));
+        }
         let Some(next) = refine(&fewer, data, omega, dt, (0, n / 2), free_omega) else {
             break;
         };
         let score = held_out_percent(&next.sim, data, omega, dt, periods).unwrap_or(f64::INFINITY);
-        let mut names = names.clone();
-        names.push(name);
         chain.push((next, score, names));
     }
     let best = chain.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
@@ -896,7 +967,25 @@ pub fn refined_omega(streaming: &SystemSim, refined: &SystemSim, omega: f64) -> 
     }
 }
 
-/// How many terms backward elimination drops at most ([`eliminate`]).
+/// Whether `term` of equation `e` is one of a harvester's standard form, which [`eliminate`]
+/// never drops: a linear term of a displacement's equation (stiffness, damping, coupling),
+/// and of an electrical equation the velocities and electrical states (the coupling κ v, the
+/// circuit's own decay) but not a displacement: a circuit is driven by the velocity, and an x
+/// in V' or i' is the equation error's (`lssi gen electromagnetic --electrical i --coil
+/// inductive --wells bistable --delta 0.01`, seeds 1-3 and 7: i' kept x at 0.5-1.6 standard
+/// errors and was withheld).
+fn standard_form(sim: &SystemSim, e: usize, term: SimTerm) -> bool {
+    let SimTerm::Monomial(p) = term else {
+        return false;
+    };
+    if p.iter().sum::<u8>() != 1 {
+        return false;
+    }
+    e < sim.displacements || (p[0] == 0 && p[4] == 0)
+}
+
+/// How many times backward elimination drops at most ([`eliminate`]): one term, or every
+/// term under one standard error at once.
 const MAX_DROPS: usize = 3;
 
 /// How many of its standard errors (refined on the first half) a term other than a linear
@@ -909,7 +998,7 @@ fn target_name(sim: &SystemSim, k: usize) -> String {
     match (sim.displacements, k) {
         (1, 0) => "x''".to_owned(),
         (_, 0) => "x1''".to_owned(),
-        (_, 1) => "x2''".to_owned(),
+        (2, 1) => "x2''".to_owned(),
         (d, k) => format!("{}'", sim.electrical[k - d].symbol()),
     }
 }

@@ -211,3 +211,62 @@ fn a_harvesters_coupling_is_not_moved_by_the_forcings_phase_drift() {
         "χ printed {chi} ± {se}, truth {truth_chi}"
     );
 }
+
+/// `lssi gen electromagnetic --electrical i --coil inductive --wells bistable --delta 0.01
+/// --seed 1` (twenty-third session): a coil's current in a chaotic double well. Withheld
+/// before: the streaming i' kept six terms of the equation error (x, x³, x²·v, x·v², sin,
+/// cos), backward elimination dropped one at a time and at most three, and x in i' counted
+/// as a harvester's linear term; the refined model, near the truth, lost to the streaming one
+/// on the held-out half because one of 39 segments started near the saddle and was fitted
+/// into the other well (73.8 % against 1.07 % on the others). Now every term under one
+/// standard error goes at once, x in an electrical equation can go, and such an outlier
+/// segment is left out of the held-out measure.
+#[test]
+fn a_coils_current_in_a_chaotic_double_well_gives_its_two_equations() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = generate(
+        dir.path(),
+        "coil.csv",
+        &[
+            "electromagnetic",
+            "--electrical",
+            "i",
+            "--coil",
+            "inductive",
+            "--wells",
+            "bistable",
+            "--delta",
+            "0.01",
+            "--seed",
+            "1",
+        ],
+    );
+    let (code, out) = identify_json(&path, &[]);
+    assert_eq!(code, 0, "{out:?}");
+    let printed = equations(&out.unwrap());
+    let want = equations(&truth(&path));
+    assert_eq!(
+        printed.keys().collect::<Vec<_>>(),
+        want.keys().collect::<Vec<_>>()
+    );
+    for (target, terms) in &want {
+        let got = &printed[target];
+        assert_eq!(
+            got.keys().collect::<Vec<_>>(),
+            terms.keys().collect::<Vec<_>>(),
+            "{target}: printed {got:?}, truth {terms:?}"
+        );
+        for (name, (w, _)) in terms {
+            let bar = if name == "v" && target == "x''" {
+                0.25
+            } else {
+                0.10
+            };
+            let (c, _) = got[name];
+            assert!(
+                ((c - w) / w).abs() <= bar,
+                "{target}'s {name}: printed {c}, truth {w}"
+            );
+        }
+    }
+}
