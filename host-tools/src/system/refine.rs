@@ -606,8 +606,9 @@ pub const OUTLIER_FACTOR: f64 = 10.0;
 /// The held-out measure of `sim` on the record's second half: segments of `periods` periods
 /// (eight: the long pass's), each simulated from its own initial state fitted with the
 /// coefficients fixed, and the RMS of the weighted residual over them, % (the mean
-/// simulation error of the recorded states over their standard deviations). The measure
-/// refinement minimises, on samples it did not see.
+/// simulation error of the recorded states over their standard deviations), less a segment
+/// over [`OUTLIER_FACTOR`] times the median segment's error (at most one in eight). The
+/// measure refinement minimises, on samples it did not see.
 pub fn held_out_percent(
     sim: &SystemSim,
     data: &SystemData,
@@ -765,19 +766,20 @@ pub fn refine_and_check(
 }
 
 /// Backward elimination over the first half's refinement, as single equations get it
-/// ([`crate::identify::refine`]): the least significant term of any equation, when under
-/// [`SIGNIFICANT_SE`] of its standard errors, is dropped and the rest refined again on the
-/// first half (from their refined coefficients), and so on, at most [`MAX_DROPS`] times; the
-/// sparsest of the chain whose held-out error is within [`NOT_WORSE`] of the chain's best is
-/// kept. The streaming selection keeps, beside a harvester's terms, one or two of the
+/// ([`crate::identify::refine`]): every term under one standard error at once (when there
+/// are several and each equation keeps two terms), else the least significant term of any
+/// equation when under [`SIGNIFICANT_SE`] of its standard errors, is dropped and the rest
+/// refined again on the first half (from their refined coefficients), and so on, at most
+/// [`MAX_DROPS`] times; the sparsest of the chain whose held-out error is within
+/// [`NOT_WORSE`] of the chain's best is kept. The streaming selection keeps, beside a harvester's terms, one or two of the
 /// equation error at a few percent of noise (v², v³, x·v², a sine beside the forcing's
 /// cosine) that the refinement cannot fix the sign of (`scripts/hostile-system.sh`, seeds
 /// 10350, 10360, 10363: withheld as "the recording does not determine the terms").
-/// The linear terms are never dropped: they are the harvester's standard form (stiffness,
-/// damping, coupling, the circuit's own decay), whose absence the quality gate names on its
-/// own; the candidates dropped are the library's constants, higher-order terms, harmonics
-/// and the input u. Returns the model kept (on the first half) and the names of the terms
-/// dropped, as `x''`'s `v^3`.
+/// The linear terms of the harvester's standard form (stiffness, damping, coupling, the
+/// circuit's own decay: [`standard_form`]) are never dropped, whose absence the quality gate
+/// names on its own; the candidates dropped are the library's constants, higher-order terms,
+/// harmonics, the input u, and x in an electrical equation. Returns the model kept (on the
+/// first half) and the names of the terms dropped, as `x''`'s `v^3`.
 fn eliminate(
     first: Option<Refined>,
     first_score: f64,
@@ -834,17 +836,14 @@ fn eliminate(
             );
         }
         let mut fewer = sim.clone();
-        let keeps_two = |f: &SystemSim| {
-            f.equations
-                .iter()
-                .all(|eq| eq.iter().filter(|(_, c)| *c != 0.0).count() >= 2)
-        };
-        let drop: Vec<(usize, usize)> = if weak.len() > 1 && {
-            for &(e, j) in &weak {
-                fewer.equations[e][j].1 = 0.0;
-            }
-            keeps_two(&fewer)
-        } {
+        for &(e, j) in &weak {
+            fewer.equations[e][j].1 = 0.0;
+        }
+        let keeps_two = fewer
+            .equations
+            .iter()
+            .all(|eq| eq.iter().filter(|(_, c)| *c != 0.0).count() >= 2);
+        let drop: Vec<(usize, usize)> = if weak.len() > 1 && keeps_two {
             weak
         } else {
             fewer = sim.clone();
