@@ -90,8 +90,8 @@ ADC_HZ, ROW_HZ, VREF = 10_000, 200, 3.3
 print(f"frames decoded: {len(frames)} ({len(health)} Health, {len(models)} "
       f"{'Model' if kind == 'single' else 'SystemModel'}) in {end - start:.1f} s")
 if len(health) < 4:
-    print(f"FAIL: {len(health)} Health frames decoded (at least 4 expected)")
-    sys.exit(1)
+    print(f"too few: {len(health)} Health frames decoded (at least 4 expected)")
+    sys.exit(3)
 rows = [h["samples"] + h["rejected"] for h in health]
 steps = [b - a for a, b in zip(rows, rows[1:])]
 if any(s <= 0 for s in steps):
@@ -145,7 +145,25 @@ sys.exit(1 if failures else 0)
 EOF
 }
 
-run_image netduinoplus2
-check single
-run_image netduinoplus2,system
-check system
+# Each image listened to again for twice as long when too few Health frames came (exit 3 of
+# the check): the guest's pace against wall time depends on the host's load (CI once decoded
+# 3 Health frames in 25 s where 4 are needed, with the device's code unchanged).
+listen() { # listen FEATURES KIND
+    local rc=0 base=$seconds
+    run_image "$1"
+    check "$2" || rc=$?
+    if [[ $rc == 3 ]]; then
+        seconds=$((seconds * 2))
+        echo "listening again, $seconds s"
+        rc=0
+        run_image "$1"
+        check "$2" || rc=$?
+        seconds=$base
+    fi
+    if [[ $rc != 0 ]]; then
+        echo "FAIL: the $2 image (exit $rc)"
+        exit 1
+    fi
+}
+listen netduinoplus2 single
+listen netduinoplus2,system system
